@@ -1,0 +1,362 @@
+from __future__ import annotations
+
+import io
+import pathlib
+import pickle
+import zipfile
+from typing import Any, ClassVar, TypeVar
+
+import numpy as np
+import torch as th
+from stable_baselines3.common.base_class import maybe_make_env
+from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.noise import ActionNoise
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.save_util import load_from_zip_file
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule, TensorDict
+from stable_baselines3.common.utils import FloatSchedule, polyak_update, update_learning_rate
+from stable_baselines3.td3.td3 import TD3
+from torch.nn import functional as F
+
+from sb3_adc.adc.policies import ADCPolicy, CnnPolicy, DuelingIntervalCritic, MlpPolicy, MultiInputPolicy
+from sb3_adc.common.schedules import ScaledSchedule
+from sb3_adc.common.spaces import check_action_space
+
+SelfADC = TypeVar("SelfADC", bound="ADC")
+
+#: Ratio of the critic's to the actor's learning rate in the ADC paper (Tables 1-3).
+PAPER_CRITIC_LR_FACTOR = 2.0
+
+
+class ADC(TD3):
+    """
+    Actor-Dueling-Critic (ADC).
+
+    The Actor-Dueling-Critic Method for Reinforcement Learning (Wu et al., Sensors 2019): a deterministic
+    policy-gradient actor trained against a *dueling* critic whose advantage stream has one output per
+    uniform interval of the action range, ``Q = V + A(s, z_a) - mean_z A(s, z)`` (Eq. 13-14), with
+    experience replay and soft target updates (Algorithm 1). Use
+    :class:`~sb3_adc.common.noise.EpsilonGaussianNoise` as ``action_noise`` for the paper's exploration.
+
+    ADC is a special case of TD3, the way SB3's DDPG is, with a
+    :class:`~sb3_adc.adc.policies.DuelingIntervalCritic` in place of the critic. Its defaults follow the
+    paper: one critic, the actor updated at every gradient step, no target-policy smoothing, soft target
+    updates, and a critic learning rate twice the actor's. The other defaults are SB3 DDPG's, so ADC is
+    a drop-in comparison against it.
+
+    :param policy: The policy model to use (MlpPolicy, CnnPolicy, MultiInputPolicy, or an ``ADCPolicy``
+        subclass)
+    :param env: The environment to learn from (if registered in Gym, can be str); its action space must be
+        a ``Box`` with finite bounds
+    :param learning_rate: learning rate of the actor's Adam optimizer; it can be a function of the current
+        progress remaining (from 1 to 0)
+    :param critic_learning_rate: learning rate of the critic's optimizer (a float or a schedule);
+        ``None`` (default) uses twice ``learning_rate`` at every point of training, as in the paper
+    :param buffer_size: size of the replay buffer
+    :param learning_starts: how many steps of the model to collect transitions for before learning starts
+    :param batch_size: Minibatch size for each gradient update
+    :param tau: the soft update coefficient ("Polyak update", between 0 and 1)
+    :param gamma: the discount factor
+    :param train_freq: Update the model every ``train_freq`` steps. Alternatively pass a tuple of frequency and
+        unit like ``(5, "step")`` or ``(2, "episode")``.
+    :param gradient_steps: How many gradient steps to do after each rollout (see ``train_freq``).
+        Set to ``-1`` means to do as many gradient steps as steps done in the environment during the rollout.
+    :param action_noise: the action noise type (None by default);
+        :class:`~sb3_adc.common.noise.EpsilonGaussianNoise` gives the paper's epsilon-gated exploration
+    :param replay_buffer_class: Replay buffer class to use (for instance ``HerReplayBuffer``).
+        If ``None``, it will be automatically selected.
+    :param replay_buffer_kwargs: Keyword arguments to pass to the replay buffer on creation.
+    :param optimize_memory_usage: Enable a memory efficient variant of the replay buffer
+        at a cost of more complexity.
+    :param n_steps: When ``n_steps > 1``, uses n-step returns (with SB3's ``NStepReplayBuffer``) when updating
+        the Q-value network.
+    :param policy_delay: The actor and the target networks are updated once every ``policy_delay`` gradient
+        steps (1 in the paper)
+    :param target_policy_noise: Standard deviation of the target-policy smoothing noise (0, none, in the paper;
+        use it with ``policy_kwargs=dict(n_critics=2)`` for a TD3-style variant)
+    :param target_noise_clip: Limit for absolute value of target policy smoothing noise.
+    :param stats_window_size: Window size for the rollout logging, specifying the number of episodes to average
+        the reported success rate, mean episode length, and mean reward over
+    :param tensorboard_log: the log location for tensorboard (if None, no logging)
+    :param policy_kwargs: additional arguments to be passed to the policy on creation, among them
+        ``n_intervals``, ``value_net_arch``, ``advantage_net_arch``, ``aggregation``,
+        ``advantage_interpolation`` and ``n_critics`` (see :class:`~sb3_adc.adc.policies.ADCPolicy`)
+    :param verbose: Verbosity level: 0 for no output, 1 for info messages (such as device or wrappers used),
+        2 for debug messages
+    :param seed: Seed for the pseudo random generators
+    :param device: Device (cpu, cuda, ...) on which the code should be run.
+        Setting it to auto, the code will be run on the GPU if possible.
+    :param _init_setup_model: Whether or not to build the network at the creation of the instance
+    """
+
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
+        "MlpPolicy": MlpPolicy,
+        "CnnPolicy": CnnPolicy,
+        "MultiInputPolicy": MultiInputPolicy,
+    }
+    policy: ADCPolicy
+    critic: DuelingIntervalCritic
+    critic_target: DuelingIntervalCritic
+    critic_lr_schedule: Schedule
+
+    def __init__(
+        self,
+        policy: str | type[ADCPolicy],
+        env: GymEnv | str,
+        learning_rate: float | Schedule = 1e-3,
+        critic_learning_rate: float | Schedule | None = None,
+        buffer_size: int = 1_000_000,
+        learning_starts: int = 100,
+        batch_size: int = 256,
+        tau: float = 0.005,
+        gamma: float = 0.99,
+        train_freq: int | tuple[int, str] = 1,
+        gradient_steps: int = 1,
+        action_noise: ActionNoise | None = None,
+        replay_buffer_class: type[ReplayBuffer] | None = None,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        optimize_memory_usage: bool = False,
+        n_steps: int = 1,
+        policy_delay: int = 1,
+        target_policy_noise: float = 0.0,
+        target_noise_clip: float = 0.0,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        policy_kwargs: dict[str, Any] | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: th.device | str = "auto",
+        _init_setup_model: bool = True,
+    ):
+        if env is not None:
+            # Check the action space before SB3 does, for an error that says what ADC accepts.
+            env = maybe_make_env(env, verbose)
+            check_action_space(env.action_space)
+        super().__init__(
+            policy=policy,
+            env=env,
+            learning_rate=learning_rate,
+            buffer_size=buffer_size,
+            learning_starts=learning_starts,
+            batch_size=batch_size,
+            tau=tau,
+            gamma=gamma,
+            train_freq=train_freq,
+            gradient_steps=gradient_steps,
+            action_noise=action_noise,
+            replay_buffer_class=replay_buffer_class,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            optimize_memory_usage=optimize_memory_usage,
+            n_steps=n_steps,
+            policy_delay=policy_delay,
+            target_policy_noise=target_policy_noise,
+            target_noise_clip=target_noise_clip,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            policy_kwargs=policy_kwargs,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=False,
+        )
+        self.critic_learning_rate = critic_learning_rate
+        if _init_setup_model:
+            self._setup_model()
+
+    def _setup_model(self) -> None:
+        if not (isinstance(self.policy_class, type) and issubclass(self.policy_class, ADCPolicy)):
+            raise TypeError(
+                f"`policy` must be one of {sorted(self.policy_aliases)} or a subclass of ADCPolicy, got "
+                f"{self.policy_class!r}. (Loading a model file saved by another algorithm? Load it with that "
+                "algorithm's class.)"
+            )
+        super()._setup_model()
+        update_learning_rate(self.critic.optimizer, self.critic_lr_schedule(1.0))
+
+    def _setup_lr_schedule(self) -> None:
+        super()._setup_lr_schedule()
+        if self.critic_learning_rate is None:
+            self.critic_lr_schedule = ScaledSchedule(self.lr_schedule, PAPER_CRITIC_LR_FACTOR)
+        else:
+            self.critic_lr_schedule = FloatSchedule(self.critic_learning_rate)
+
+    def _update_learning_rate(self, optimizers: list[th.optim.Optimizer] | th.optim.Optimizer) -> None:
+        """
+        Set the learning rates for the current progress: the critic's optimizer follows
+        ``critic_learning_rate``, every other optimizer ``learning_rate``.
+
+        :param optimizers: An optimizer or a list of optimizers.
+        """
+        actor_lr = self.lr_schedule(self._current_progress_remaining)
+        critic_lr = self.critic_lr_schedule(self._current_progress_remaining)
+        self.logger.record("train/learning_rate", actor_lr)
+        self.logger.record("train/critic_learning_rate", critic_lr)
+        for optimizer in optimizers if isinstance(optimizers, list) else [optimizers]:
+            update_learning_rate(optimizer, critic_lr if optimizer is self.critic.optimizer else actor_lr)
+
+    def train(self, gradient_steps: int, batch_size: int = 100) -> None:
+        # Switch to train mode (this affects batch norm / dropout)
+        self.policy.set_training_mode(True)
+        self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
+
+        actor_losses, critic_losses = [], []
+        for _ in range(gradient_steps):
+            self._n_updates += 1
+            replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
+            # For n-step replay, discount factor is gamma**n_steps (when no early termination)
+            discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
+
+            with th.no_grad():
+                # Algorithm 1, lines 9-11: y = r + gamma * Q'(s', mu'(s'))
+                next_actions = self.actor_target(replay_data.next_observations)
+                if self.target_policy_noise > 0:
+                    noise = next_actions.clone().normal_(0, self.target_policy_noise)
+                    noise = noise.clamp(-self.target_noise_clip, self.target_noise_clip)
+                    next_actions = (next_actions + noise).clamp(-1, 1)
+                next_q_values = th.cat(self.critic_target(replay_data.next_observations, next_actions), dim=1)
+                next_q_values = next_q_values.min(dim=1, keepdim=True).values
+                target_q_values = replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_values
+
+            # Line 12: minimise the squared TD error of every dueling critic network
+            estimates = self.critic.estimate(replay_data.observations, replay_data.actions)
+            critic_loss = sum(F.mse_loss(estimate.q_value, target_q_values) for estimate in estimates)
+            assert isinstance(critic_loss, th.Tensor)
+            critic_losses.append(critic_loss.item())
+
+            self.critic.optimizer.zero_grad()
+            critic_loss.backward()
+            self.critic.optimizer.step()
+
+            if self._n_updates % self.policy_delay == 0:
+                # Line 13: deterministic policy gradient through the dueling critic
+                actor_loss = -self.critic.q1_forward(replay_data.observations, self.actor(replay_data.observations)).mean()
+                actor_losses.append(actor_loss.item())
+
+                self.actor.optimizer.zero_grad()
+                actor_loss.backward()
+                self.actor.optimizer.step()
+
+                # Line 14: soft target updates
+                polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
+                polyak_update(self.actor.parameters(), self.actor_target.parameters(), self.tau)
+                # Copy running stats, see SB3 GH issue #996
+                polyak_update(self.critic_batch_norm_stats, self.critic_batch_norm_stats_target, 1.0)
+                polyak_update(self.actor_batch_norm_stats, self.actor_batch_norm_stats_target, 1.0)
+
+        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
+        if len(actor_losses) > 0:
+            self.logger.record("train/actor_loss", np.mean(actor_losses))
+        self.logger.record("train/critic_loss", np.mean(critic_losses))
+        if gradient_steps > 0:
+            # Diagnostics of the first critic on the last training batch
+            value, advantages = estimates[0].value.detach(), estimates[0].advantages.detach()
+            self.logger.record("train/value_mean", value.mean().item())
+            self.logger.record("train/advantage_std", advantages.std(dim=-1).mean().item())
+
+    def learn(
+        self: SelfADC,
+        total_timesteps: int,
+        callback: MaybeCallback = None,
+        log_interval: int = 4,
+        tb_log_name: str = "ADC",
+        reset_num_timesteps: bool = True,
+        progress_bar: bool = False,
+    ) -> SelfADC:
+        return super().learn(
+            total_timesteps=total_timesteps,
+            callback=callback,
+            log_interval=log_interval,
+            tb_log_name=tb_log_name,
+            reset_num_timesteps=reset_num_timesteps,
+            progress_bar=progress_bar,
+        )
+
+    def _excluded_save_params(self) -> list[str]:
+        # The critic schedule is rebuilt from `critic_learning_rate` and `learning_rate` on load.
+        return [*super()._excluded_save_params(), "critic_lr_schedule"]
+
+    def set_parameters(
+        self,
+        load_path_or_dict: str | TensorDict,
+        exact_match: bool = True,
+        device: th.device | str = "auto",
+    ) -> None:
+        """
+        Load parameters from a zip file or a dictionary of state dicts (see SB3's ``set_parameters``), after
+        checking that they were made with this model's ``n_intervals``.
+
+        :param load_path_or_dict: Location of the saved data, or a dictionary of state dicts
+        :param exact_match: If True, the given parameters must include every parameter of every module
+        :param device: Device on which the code should run.
+        """
+        if isinstance(load_path_or_dict, dict):
+            self._check_interval_count(load_path_or_dict)
+            super().set_parameters(load_path_or_dict, exact_match=exact_match, device=device)
+        else:
+            _, params, _ = load_from_zip_file(load_path_or_dict, device=device, load_data=False)
+            self._check_interval_count(params)
+            super().set_parameters(params, exact_match=exact_match, device=device)
+
+    def _check_interval_count(self, params: dict[str, Any]) -> None:
+        policy_state = params.get("policy")
+        if not isinstance(policy_state, dict):
+            return
+        edges = policy_state.get("critic.partition.edges")
+        if edges is None:
+            if any(key.startswith("critic.") for key in policy_state):
+                raise ValueError(
+                    "The parameters were not saved by an ADC model (no dueling interval critic found); "
+                    "load them with the class of the algorithm that saved them."
+                )
+            return
+        saved = int(edges.shape[0]) - 1
+        if saved != self.policy.n_intervals:
+            raise ValueError(
+                f"`n_intervals` mismatch: the saved critic has n_intervals={saved}, this model has "
+                f"n_intervals={self.policy.n_intervals}. Build the model with policy_kwargs=dict(n_intervals={saved})."
+            )
+
+    @classmethod
+    def load(  # type: ignore[override]
+        cls: type[SelfADC],
+        path: str | pathlib.Path | io.BufferedIOBase,
+        env: GymEnv | None = None,
+        device: th.device | str = "auto",
+        custom_objects: dict[str, Any] | None = None,
+        print_system_info: bool = False,
+        force_reset: bool = True,
+        **kwargs: Any,
+    ) -> SelfADC:
+        """
+        Load an ADC model from a zip file (see SB3's ``BaseAlgorithm.load``).
+
+        Errors name the file: a file that is not an SB3 model archive, one saved by another algorithm, or one
+        whose action or observation space, or ``n_intervals``, does not match ``env`` or the given policy
+        options raises ``ValueError``.
+
+        :param path: path to the file (or a file-like) where to load the agent from
+        :param env: the new environment to run the loaded model on (can be None if you only need prediction
+            from a trained model); its spaces must match the saved ones
+        :param device: Device on which the code should run.
+        :param custom_objects: Dictionary of objects to replace upon loading
+        :param print_system_info: Whether to print system info from the saved model
+        :param force_reset: Force call to ``reset()`` before training to avoid unexpected behavior
+        :param kwargs: extra arguments to change the model when loading
+        :return: new model instance with loaded parameters
+        """
+        if env is not None:
+            check_action_space(env.action_space)
+        try:
+            return super().load(
+                path,
+                env=env,
+                device=device,
+                custom_objects=custom_objects,
+                print_system_info=print_system_info,
+                force_reset=force_reset,
+                **kwargs,
+            )
+        except (zipfile.BadZipFile, EOFError, pickle.UnpicklingError, KeyError, RuntimeError) as error:
+            raise ValueError(f"{path!s} is not a readable ADC model file: {type(error).__name__}: {error}") from error
+        except (ValueError, TypeError) as error:
+            raise type(error)(f"Cannot load the ADC model {path!s}: {error}") from error

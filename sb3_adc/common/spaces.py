@@ -1,0 +1,36 @@
+"""Checks of the spaces an algorithm is given, with errors that name the parameter and the accepted values."""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+
+
+def check_action_space(action_space: spaces.Space) -> None:
+    """
+    Raise an error unless ``action_space`` is a bounded, finite :class:`gymnasium.spaces.Box`.
+
+    ADC's actor outputs continuous actions squashed into ``[low, high]`` and its critic partitions that range
+    into uniform intervals, so the range must be continuous and finite.
+
+    :param action_space: The environment's action space
+    :raises TypeError: if it is not a ``Box`` (for instance ``Discrete`` or ``MultiDiscrete``)
+    :raises ValueError: if a bound is infinite or NaN, or ``high <= low`` somewhere
+    """
+    if not isinstance(action_space, spaces.Box):
+        hint = ""
+        if isinstance(action_space, (spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary)):
+            hint = " For discrete actions use a value-based method such as SB3's DQN."
+        raise TypeError(
+            f"`action_space` must be a continuous gymnasium.spaces.Box with finite bounds, "
+            f"got {action_space!r}.{hint}"
+        )
+    low, high = np.asarray(action_space.low), np.asarray(action_space.high)
+    if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
+        raise ValueError(
+            f"`action_space` must have finite bounds (the critic partitions [low, high] into intervals), "
+            f"got low={low.tolist()}, high={high.tolist()}. Rescale the actions to a finite range, "
+            "e.g. with gymnasium.wrappers.RescaleAction or ClipAction."
+        )
+    if np.any(high <= low):
+        raise ValueError(f"`action_space` must have high > low in every dimension, got low={low.tolist()}, high={high.tolist()}.")
