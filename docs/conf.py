@@ -10,7 +10,7 @@ with open(os.path.join(os.path.dirname(__file__), "..", "sb3_adc", "version.txt"
 
 project = "sb3-adc"
 author = "sb3-adc developers"
-copyright = "2026, sb3-adc developers"  # noqa: A001
+copyright = "2026, sb3-adc developers"
 version = release
 
 extensions = [

@@ -28,8 +28,7 @@ class UniformObservationNoise(gym.ObservationWrapper[np.ndarray, Any, np.ndarray
         super().__init__(env)
         if not isinstance(env.observation_space, spaces.Box):
             raise TypeError(
-                f"UniformObservationNoise needs a Box observation space, got {env.observation_space!r} "
-                "(parameter `env`)."
+                f"UniformObservationNoise needs a Box observation space, got {env.observation_space!r} (parameter `env`)."
             )
         box = env.observation_space
         noise_low = np.broadcast_to(np.asarray(low, dtype=np.float64), box.shape)
@@ -44,7 +43,7 @@ class UniformObservationNoise(gym.ObservationWrapper[np.ndarray, Any, np.ndarray
             low=(box.low + self.noise_low).astype(box.dtype),
             high=(box.high + self.noise_high).astype(box.dtype),
             shape=box.shape,
-            dtype=box.dtype,  # type: ignore[arg-type]
+            dtype=box.dtype,
         )
         self._noise_rng, _ = seeding.np_random()
 

@@ -95,8 +95,8 @@ class ADC(TD3):
         "MultiInputPolicy": MultiInputPolicy,
     }
     policy: ADCPolicy
-    critic: DuelingIntervalCritic
-    critic_target: DuelingIntervalCritic
+    critic: DuelingIntervalCritic  # type: ignore[assignment]
+    critic_target: DuelingIntervalCritic  # type: ignore[assignment]
     critic_lr_schedule: Schedule
 
     def __init__(
@@ -317,7 +317,7 @@ class ADC(TD3):
             )
 
     @classmethod
-    def load(  # type: ignore[override]
+    def load(
         cls: type[SelfADC],
         path: str | pathlib.Path | io.BufferedIOBase,
         env: GymEnv | None = None,

@@ -257,8 +257,8 @@ class ADCPolicy(TD3Policy):
     :param advantage_interpolation: ``"none"`` (the paper) or ``"linear"``
     """
 
-    critic: DuelingIntervalCritic
-    critic_target: DuelingIntervalCritic
+    critic: DuelingIntervalCritic  # type: ignore[assignment]
+    critic_target: DuelingIntervalCritic  # type: ignore[assignment]
 
     def __init__(
         self,
@@ -340,7 +340,9 @@ class CnnPolicy(ADCPolicy):
         features_extractor_class: type[BaseFeaturesExtractor] = NatureCNN,
         **kwargs: Any,
     ):
-        super().__init__(observation_space, action_space, lr_schedule, net_arch, activation_fn, features_extractor_class, **kwargs)
+        super().__init__(
+            observation_space, action_space, lr_schedule, net_arch, activation_fn, features_extractor_class, **kwargs
+        )
 
 
 class MultiInputPolicy(ADCPolicy):
@@ -359,4 +361,6 @@ class MultiInputPolicy(ADCPolicy):
         features_extractor_class: type[BaseFeaturesExtractor] = CombinedExtractor,
         **kwargs: Any,
     ):
-        super().__init__(observation_space, action_space, lr_schedule, net_arch, activation_fn, features_extractor_class, **kwargs)
+        super().__init__(
+            observation_space, action_space, lr_schedule, net_arch, activation_fn, features_extractor_class, **kwargs
+        )

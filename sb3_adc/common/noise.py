@@ -77,8 +77,9 @@ class EpsilonGaussianNoise(ActionNoise):
     def __call__(self) -> np.ndarray:
         epsilon = self.epsilon
         self.n_calls += 1
-        if np.random.random() < epsilon:
-            return np.random.normal(self._mu, self._sigma).astype(self._dtype)
+        # NumPy's global generator, as SB3's noises: seeded by the model's `seed`.
+        if np.random.random() < epsilon:  # noqa: NPY002
+            return np.random.normal(self._mu, self._sigma).astype(self._dtype)  # noqa: NPY002
         return self._zeros.copy()
 
     def reset(self) -> None:

@@ -22,8 +22,7 @@ def check_action_space(action_space: spaces.Space) -> None:
         if isinstance(action_space, (spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary)):
             hint = " For discrete actions use a value-based method such as SB3's DQN."
         raise TypeError(
-            f"`action_space` must be a continuous gymnasium.spaces.Box with finite bounds, "
-            f"got {action_space!r}.{hint}"
+            f"`action_space` must be a continuous gymnasium.spaces.Box with finite bounds, got {action_space!r}.{hint}"
         )
     low, high = np.asarray(action_space.low), np.asarray(action_space.high)
     if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
@@ -33,4 +32,6 @@ def check_action_space(action_space: spaces.Space) -> None:
             "e.g. with gymnasium.wrappers.RescaleAction or ClipAction."
         )
     if np.any(high <= low):
-        raise ValueError(f"`action_space` must have high > low in every dimension, got low={low.tolist()}, high={high.tolist()}.")
+        raise ValueError(
+            f"`action_space` must have high > low in every dimension, got low={low.tolist()}, high={high.tolist()}."
+        )
