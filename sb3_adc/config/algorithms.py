@@ -1,0 +1,50 @@
+"""The algorithms the tooling trains, by the name used for ``--algo`` and for the hyperparameter file."""
+
+from __future__ import annotations
+
+from stable_baselines3.common.base_class import BaseAlgorithm
+
+from sb3_adc.config.allowlists import AllowList
+from sb3_adc.config.errors import HyperparamsError
+
+#: ``--algo`` name -> algorithm class. ``ddpg`` is SB3's DDPG with an optional ``critic_learning_rate``
+#: (:class:`~sb3_adc.baselines.SplitRateDDPG`, identical to SB3's DDPG without it). Add your own with
+#: ``ALGORITHMS.add("name", AlgorithmClass)`` (and a ``name.yml`` hyperparameter file).
+ALGORITHMS = AllowList(
+    "algorithm",
+    {
+        "adc": "sb3_adc.adc:ADC",
+        "ddpg": "sb3_adc.baselines:SplitRateDDPG",
+        "td3": "stable_baselines3:TD3",
+        "sac": "stable_baselines3:SAC",
+        "dqn": "stable_baselines3:DQN",
+        "vanilla_ac": "sb3_adc.baselines:VanillaActorCritic",
+    },
+)
+
+
+def get_algorithm(name: str, source: str = "command line", key: str = "--algo") -> type[BaseAlgorithm]:
+    """
+    The algorithm class of an ``--algo`` name.
+
+    :param name: The name (``adc``, ``ddpg``, ``td3``, ``sac``, ``dqn``, ``vanilla_ac``, or one added to
+        :data:`ALGORITHMS`)
+    :param source: Where the name was read, for the error message
+    :param key: The option or key that gave the name, for the error message
+    :raises HyperparamsError: for an unknown name (the message lists the accepted ones)
+    """
+    algorithm = ALGORITHMS.resolve(name, source, key)
+    if not (isinstance(algorithm, type) and issubclass(algorithm, BaseAlgorithm)):
+        raise HyperparamsError(source, key, f"{name!r} is registered as {algorithm!r}, not an SB3 algorithm class")
+    return algorithm
+
+
+def is_adc(algorithm_class: type[BaseAlgorithm]) -> bool:
+    """
+    Whether the class is ADC (or a subclass): it then accepts ADC's top-level policy keys.
+
+    :param algorithm_class: The algorithm
+    """
+    from sb3_adc.adc import ADC
+
+    return issubclass(algorithm_class, ADC)

@@ -1,0 +1,163 @@
+"""
+The names a hyperparameter file may refer to.
+
+A configuration file never makes Python import or run what it names: every class it can reach is listed
+here, as ``name -> "module:attribute"``, and imported by this package only. Add your own classes from
+Python (not from a file) with :meth:`AllowList.add`, for example
+``ENV_WRAPPERS.add("my_pkg.MyWrapper", MyWrapper)`` before calling the loader.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Iterator
+
+from sb3_adc.config.errors import HyperparamsError
+
+
+class AllowList:
+    """
+    A named set of objects that configuration values may refer to by name.
+
+    :param kind: What the names are (used in error messages), e.g. ``"environment wrapper"``
+    :param targets: ``name -> "module:attribute"``; the module is imported on first use of the name
+    """
+
+    def __init__(self, kind: str, targets: dict[str, str]):
+        self.kind = kind
+        self._targets: dict[str, str | object] = dict(targets)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._targets
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(sorted(self._targets))
+
+    def names(self) -> list[str]:
+        """The accepted names, sorted."""
+        return sorted(self._targets)
+
+    def add(self, name: str, target: object) -> None:
+        """
+        Accept one more name.
+
+        :param name: The name configuration files will use (a dotted path such as ``"my_pkg.MyWrapper"``)
+        :param target: The object itself, or where to import it from as ``"module:attribute"``
+        """
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"AllowList.add: `name` must be a non-empty string, got {name!r}.")
+        self._targets[name] = target
+
+    def remove(self, name: str) -> None:
+        """
+        Stop accepting a name.
+
+        :param name: A name added before
+        :raises KeyError: if the name is not in the list
+        """
+        del self._targets[name]
+
+    def resolve(self, name: str, source: str, key: str) -> object:
+        """
+        The object a name stands for.
+
+        :param name: The name as written in the configuration
+        :param source: Where the name was read (for the error message)
+        :param key: The hyperparameter key (for the error message)
+        :raises HyperparamsError: if the name is not in the list
+        """
+        if name not in self._targets:
+            raise HyperparamsError(
+                source, key, f"unknown {self.kind} {name!r}; accepted: {', '.join(self.names())}", expression=name
+            )
+        target = self._targets[name]
+        if not isinstance(target, str):
+            return target
+        module_name, _, attribute = target.partition(":")
+        resolved = getattr(importlib.import_module(module_name), attribute)
+        self._targets[name] = resolved
+        return resolved
+
+
+def _prefixed(prefixes: tuple[str, ...], module: str, attributes: tuple[str, ...]) -> dict[str, str]:
+    return {f"{prefix}{attribute}": f"{module}:{attribute}" for prefix in prefixes for attribute in attributes}
+
+
+_ACTIVATIONS = (
+    "ReLU",
+    "Tanh",
+    "ELU",
+    "LeakyReLU",
+    "SELU",
+    "SiLU",
+    "GELU",
+    "Sigmoid",
+    "Softplus",
+    "Mish",
+    "Hardtanh",
+    "Identity",
+)
+_OPTIMIZERS = ("Adam", "AdamW", "SGD", "RMSprop")
+_FEATURES_EXTRACTORS = ("FlattenExtractor", "NatureCNN", "CombinedExtractor")
+
+#: Names usable inside expressions (``policy_kwargs``, ``replay_buffer_kwargs``, ``normalize`` strings):
+#: torch activation functions and optimizers, SB3 features extractors and optimizers.
+EXPRESSION_NAMES = AllowList(
+    "name",
+    {
+        **_prefixed(("nn.", "th.nn.", "torch.nn."), "torch.nn", _ACTIVATIONS),
+        **_prefixed(("th.optim.", "torch.optim."), "torch.optim", _OPTIMIZERS),
+        **_prefixed(
+            ("", "stable_baselines3.common.torch_layers."), "stable_baselines3.common.torch_layers", _FEATURES_EXTRACTORS
+        ),
+        "RMSpropTFLike": "stable_baselines3.common.sb2_compat.rmsprop_tf_like:RMSpropTFLike",
+    },
+)
+
+#: Values of ``replay_buffer_class``.
+REPLAY_BUFFERS = AllowList(
+    "replay buffer class",
+    {
+        "ReplayBuffer": "stable_baselines3.common.buffers:ReplayBuffer",
+        "HerReplayBuffer": "stable_baselines3:HerReplayBuffer",
+        "stable_baselines3.common.buffers.ReplayBuffer": "stable_baselines3.common.buffers:ReplayBuffer",
+        "stable_baselines3.HerReplayBuffer": "stable_baselines3:HerReplayBuffer",
+    },
+)
+
+#: Values of ``env_wrapper`` (Gymnasium wrappers applied to each environment, in order).
+ENV_WRAPPERS = AllowList(
+    "environment wrapper",
+    {
+        "sb3_adc_envs.wrappers.DiscretizedActions": "sb3_adc_envs.wrappers:DiscretizedActions",
+        "sb3_adc_envs.wrappers.UniformObservationNoise": "sb3_adc_envs.wrappers:UniformObservationNoise",
+        "sb3_contrib.common.wrappers.TimeFeatureWrapper": "sb3_contrib.common.wrappers:TimeFeatureWrapper",
+        **{
+            f"gymnasium.wrappers.{name}": f"gymnasium.wrappers:{name}"
+            for name in (
+                "ClipAction",
+                "RescaleAction",
+                "FlattenObservation",
+                "TimeLimit",
+                "FrameStackObservation",
+            )
+        },
+    },
+)
+
+#: Values of ``callback`` (SB3 callbacks added to training).
+CALLBACKS = AllowList(
+    "callback",
+    {
+        f"stable_baselines3.common.callbacks.{name}": f"stable_baselines3.common.callbacks:{name}"
+        for name in ("CheckpointCallback", "StopTrainingOnMaxEpisodes", "LogEveryNTimesteps")
+    },
+)
+
+#: ``policy`` values besides the algorithm's own aliases (``MlpPolicy``, ``CnnPolicy``, ...).
+POLICIES = AllowList(
+    "policy",
+    {
+        "sb3_adc.baselines.DuelingDQNPolicy": "sb3_adc.baselines.dueling_dqn:DuelingDQNPolicy",
+    },
+)

@@ -1,0 +1,346 @@
+"""
+Reading RL-Zoo-format hyperparameter files safely.
+
+One YAML file per algorithm (``adc.yml``, ``ddpg.yml``, ...), whose top-level keys are environment ids and
+an optional ``default`` entry; the keys of ``default`` apply to every environment unless its own entry sets
+them (a key of the environment's entry replaces the default's value as a whole). YAML is read with
+``yaml.safe_load`` semantics (no Python tags), duplicate keys are errors, and Python-like strings (such as
+``policy_kwargs: "dict(net_arch=[64, 64])"``) go through the restricted parser of
+:mod:`sb3_adc.config.expressions`: nothing from a file is executed or imported by name outside the
+allow-lists of :mod:`sb3_adc.config.allowlists`.
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+from collections.abc import Mapping, Sequence
+from importlib import resources
+from typing import Any
+
+import gymnasium as gym
+import yaml
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.utils import LinearSchedule
+
+from sb3_adc.config.algorithms import get_algorithm, is_adc
+from sb3_adc.config.allowlists import CALLBACKS, ENV_WRAPPERS, EXPRESSION_NAMES, POLICIES, REPLAY_BUFFERS, AllowList
+from sb3_adc.config.errors import HyperparamsError
+from sb3_adc.config.experiment_config import ExperimentConfig, NoiseSpec
+from sb3_adc.config.expressions import parse_expression
+from sb3_adc.config.schema import ADC_POLICY_KEYS, EPSILON_NOISE_KEYS, accepted_keys, constructor_keys
+
+#: The package holding the shipped hyperparameter files.
+HYPERPARAMS_PACKAGE = "sb3_adc.hyperparams"
+#: The entry merged under every environment's entry.
+DEFAULT_ENTRY = "default"
+#: Keys whose string values (in ``policy_kwargs`` and similar mappings) name a class of the allow-list.
+CLASS_VALUED_KWARGS = frozenset({"activation_fn", "features_extractor_class", "optimizer_class"})
+#: Keywords of ``VecNormalize`` accepted in ``normalize``.
+NORMALIZE_KEYS = frozenset({"norm_obs", "norm_reward", "clip_obs", "clip_reward", "gamma", "epsilon", "norm_obs_keys"})
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that rejects duplicate keys in a mapping (the last one would win silently)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue
+            key = self.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(None, None, f"duplicate key {key!r}", key_node.start_mark)
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
+def packaged_hyperparams_file(algo: str) -> str:
+    """
+    Path of the shipped hyperparameter file of an algorithm (inside the installed package).
+
+    :param algo: The algorithm's name
+    """
+    return str(resources.files(HYPERPARAMS_PACKAGE).joinpath(f"{algo}.yml"))
+
+
+def read_hyperparams_file(path: str) -> dict[str, Any]:
+    """
+    Read a hyperparameter file: a YAML mapping of entry names (environment ids, ``default``) to mappings.
+
+    :param path: The file
+    :raises HyperparamsError: if the file is missing, is not valid YAML, or does not have that structure
+    """
+    if not os.path.isfile(path):
+        raise HyperparamsError(path, None, "hyperparameter file not found")
+    try:
+        with open(path, encoding="utf-8") as stream:
+            content = yaml.load(stream, Loader=_UniqueKeyLoader)
+    except yaml.YAMLError as error:
+        raise HyperparamsError(path, None, f"not a valid YAML file (Python tags are not accepted): {error}") from None
+    if content is None:
+        return {}
+    if not isinstance(content, dict):
+        raise HyperparamsError(path, None, f"expected a mapping of environment ids to entries, got {type(content).__name__}")
+    for name, entry in content.items():
+        if not isinstance(name, str):
+            raise HyperparamsError(path, None, f"entry names must be environment ids (strings), got {name!r}")
+        if not isinstance(entry, dict):
+            raise HyperparamsError(f"{path} [{name}]", None, f"an entry must be a mapping of keys to values, got {entry!r}")
+    return content
+
+
+def select_entry(content: Mapping[str, Any], env_id: str, path: str) -> tuple[dict[str, Any], str]:
+    """
+    The entry of an environment, with the ``default`` entry merged under it.
+
+    :param content: The file's content (see :func:`read_hyperparams_file`)
+    :param env_id: The environment id
+    :param path: The file, for error messages
+    :return: The merged entry and its source (``path [env_id]`` or ``path [default]``)
+    :raises HyperparamsError: if the file has neither an entry for ``env_id`` nor a ``default`` entry
+    """
+    default = dict(content.get(DEFAULT_ENTRY) or {})
+    if env_id in content:
+        return {**default, **content[env_id]}, f"{path} [{env_id}]"
+    if DEFAULT_ENTRY in content:
+        return default, f"{path} [{DEFAULT_ENTRY}]"
+    entries = sorted(name for name in content if name != DEFAULT_ENTRY)
+    raise HyperparamsError(
+        path, None, f"no entry for environment {env_id!r} and no {DEFAULT_ENTRY!r} entry; entries: {', '.join(entries)}"
+    )
+
+
+def parse_overrides(items: Sequence[str], source: str = "command line") -> dict[str, Any]:
+    """
+    Parse ``key:value`` overrides (``-params``). Each value is read as YAML, exactly as if it were written
+    ``key: value`` in the file: ``learning_rate:0.001``, ``train_freq:[1,episode]``,
+    ``policy_kwargs:"dict(net_arch=[64, 64])"``.
+
+    :param items: The ``key:value`` strings
+    :param source: Where they come from, for error messages
+    :raises HyperparamsError: for an item without ``:`` or a value that is not valid YAML
+    """
+    overrides: dict[str, Any] = {}
+    for item in items:
+        key, separator, text = item.partition(":")
+        if not separator or not key:
+            raise HyperparamsError(source, None, "overrides must be written key:value", expression=item)
+        try:
+            overrides[key] = yaml.safe_load(text)
+        except yaml.YAMLError as error:
+            raise HyperparamsError(source, key, f"value is not valid YAML: {error}", expression=text) from None
+    return overrides
+
+
+def check_env_id(env_id: str) -> None:
+    """
+    Check that an environment id is registered with Gymnasium (``import sb3_adc`` registers ours).
+
+    :param env_id: The id
+    :raises HyperparamsError: for an unknown id, listing the closest registered ids and sb3-adc's own
+    """
+    if env_id in gym.registry:
+        return
+    from sb3_adc_envs.registration import ENV_SPECS
+
+    close = difflib.get_close_matches(env_id, list(gym.registry), n=5, cutoff=0.5)
+    raise HyperparamsError(
+        "command line",
+        "--env",
+        f"unknown environment id {env_id!r}; closest registered ids: {', '.join(close) or 'none'}; "
+        f"sb3-adc's environments: {', '.join(sorted(ENV_SPECS))}",
+    )
+
+
+def load_hyperparams(
+    algo: str,
+    env_id: str,
+    conf_file: str | None = None,
+    overrides: Mapping[str, Any] | None = None,
+    n_timesteps: int | None = None,
+) -> ExperimentConfig:
+    """
+    Load and resolve the hyperparameters of ``algo`` on ``env_id``.
+
+    :param algo: The algorithm's name (``adc``, ``ddpg``, ``td3``, ``sac``, ``dqn``, ``vanilla_ac``)
+    :param env_id: The environment id
+    :param conf_file: A hyperparameter file; ``None`` uses the shipped ``{algo}.yml``
+    :param overrides: Values replacing those of the entry (see :func:`parse_overrides`)
+    :param n_timesteps: Training budget replacing the entry's ``n_timesteps``
+    :raises HyperparamsError: for any invalid file, entry, key or value
+    """
+    get_algorithm(algo)
+    path = conf_file if conf_file is not None else packaged_hyperparams_file(algo)
+    entry, source = select_entry(read_hyperparams_file(path), env_id, path)
+    if overrides:
+        entry = {**entry, **overrides}
+        source = f"{source} with command-line overrides of {', '.join(sorted(overrides))}"
+    return resolve_entry(algo, env_id, entry, source, n_timesteps=n_timesteps)
+
+
+def resolve_entry(
+    algo: str, env_id: str, entry: Mapping[str, Any], source: str, n_timesteps: int | None = None
+) -> ExperimentConfig:
+    """
+    Validate one entry and resolve it into an :class:`~sb3_adc.config.experiment_config.ExperimentConfig`.
+
+    :param algo: The algorithm's name
+    :param env_id: The environment id
+    :param entry: The entry (``default`` already merged), as read from YAML
+    :param source: Where the entry comes from, for error messages
+    :param n_timesteps: Training budget replacing the entry's ``n_timesteps``
+    :raises HyperparamsError: for an unknown key, a value of the wrong type or range, a missing required key,
+        or an expression outside the accepted subset
+    """
+    algorithm_class = get_algorithm(algo, source, "algo")
+    keys = accepted_keys(algorithm_class, adc_keys=is_adc(algorithm_class))
+    unknown = sorted(set(entry) - set(keys))
+    if unknown:
+        raise HyperparamsError(
+            source,
+            unknown[0],
+            f"unknown key for {algo} ({algorithm_class.__name__}); accepted keys: {', '.join(sorted(keys))}",
+        )
+    values = {key: keys[key](value, source, key) for key, value in entry.items()}
+    if n_timesteps is not None:
+        values["n_timesteps"] = keys["n_timesteps"](n_timesteps, "command line", "n_timesteps")
+    for required in ("n_timesteps", "policy"):
+        if required not in values:
+            raise HyperparamsError(source, required, "required key missing")
+    n_envs = int(values.get("n_envs", 1))
+    noise = _resolve_noise(values, source, n_envs)
+
+    model_kwargs: dict[str, Any] = {"policy": _resolve_policy(values["policy"], algorithm_class, source)}
+    policy_kwargs = _resolve_policy_kwargs(values, source)
+    if policy_kwargs:
+        model_kwargs["policy_kwargs"] = policy_kwargs
+    for name in constructor_keys(algorithm_class):
+        if name in values:
+            model_kwargs[name] = _model_value(name, values[name], source)
+
+    return ExperimentConfig(
+        algo=algo,
+        env_id=env_id,
+        source=source,
+        algorithm_class=algorithm_class,
+        n_timesteps=int(values["n_timesteps"]),
+        n_envs=n_envs,
+        model_kwargs=model_kwargs,
+        env_kwargs=dict(values.get("env_kwargs") or {}),
+        env_wrappers=_resolve_classes(values.get("env_wrapper"), ENV_WRAPPERS, source, "env_wrapper"),
+        normalize=_resolve_normalize(values.get("normalize", False), values.get("gamma"), source),
+        frame_stack=values.get("frame_stack"),
+        callbacks=_resolve_classes(values.get("callback"), CALLBACKS, source, "callback"),
+        noise=noise,
+        saved=dict(sorted(values.items())),
+    )
+
+
+def _resolve_noise(values: dict[str, Any], source: str, n_envs: int) -> NoiseSpec | None:
+    noise_type = values.get("noise_type")
+    epsilon_keys = sorted(set(EPSILON_NOISE_KEYS) & set(values))
+    if noise_type != "epsilon-normal" and epsilon_keys:
+        raise HyperparamsError(source, epsilon_keys[0], "only accepted with `noise_type: epsilon-normal`")
+    if noise_type is None:
+        if "noise_std" in values:
+            raise HyperparamsError(source, "noise_std", "needs `noise_type` (normal, ornstein-uhlenbeck or epsilon-normal)")
+        return None
+    if "noise_std" not in values:
+        raise HyperparamsError(source, "noise_std", f"required with `noise_type: {noise_type}`")
+    if noise_type != "epsilon-normal":
+        return NoiseSpec(noise_type, values["noise_std"])
+    # Default: epsilon reaches its final value half-way through training (counted per environment).
+    values.setdefault("epsilon_decay_steps", values["n_timesteps"] // n_envs // 2)
+    values.setdefault("epsilon_initial", 1.0)
+    values.setdefault("epsilon_final", 0.0)
+    return NoiseSpec(
+        noise_type,
+        values["noise_std"],
+        epsilon_decay_steps=values["epsilon_decay_steps"],
+        epsilon_initial=values["epsilon_initial"],
+        epsilon_final=values["epsilon_final"],
+    )
+
+
+def _resolve_policy(name: str, algorithm_class: type[BaseAlgorithm], source: str) -> str | object:
+    aliases = sorted(getattr(algorithm_class, "policy_aliases", {}))
+    if name in aliases:
+        return name
+    if name in POLICIES:
+        return POLICIES.resolve(name, source, "policy")
+    raise HyperparamsError(
+        source,
+        "policy",
+        f"unknown policy {name!r} for {algorithm_class.__name__}; accepted: {', '.join(aliases + POLICIES.names())}",
+    )
+
+
+def _kwargs_from(value: dict[str, Any] | str | None, source: str, key: str) -> dict[str, Any]:
+    """A mapping, or an expression string that must evaluate to a mapping; class-valued keys resolved."""
+    if value is None:
+        return {}
+    if isinstance(value, str):
+        parsed = parse_expression(value, source, key)
+        if not isinstance(parsed, dict):
+            raise HyperparamsError(source, key, "must be a mapping such as dict(net_arch=[64, 64])", expression=value)
+        value = parsed
+    resolved = dict(value)
+    for name in CLASS_VALUED_KWARGS & set(resolved):
+        if isinstance(resolved[name], str):
+            resolved[name] = EXPRESSION_NAMES.resolve(resolved[name], source, f"{key}.{name}")
+    return resolved
+
+
+def _resolve_policy_kwargs(values: dict[str, Any], source: str) -> dict[str, Any]:
+    policy_kwargs = _kwargs_from(values.get("policy_kwargs"), source, "policy_kwargs")
+    for name in ADC_POLICY_KEYS:
+        if name not in values:
+            continue
+        if name in policy_kwargs and policy_kwargs[name] != values[name]:
+            raise HyperparamsError(
+                source,
+                name,
+                f"conflicts with policy_kwargs {name}={policy_kwargs[name]!r}; set it in one place only",
+                expression=repr(values[name]),
+            )
+        policy_kwargs[name] = values[name]
+    return policy_kwargs
+
+
+def _model_value(name: str, value: Any, source: str) -> Any:
+    if name in ("learning_rate", "critic_learning_rate") and isinstance(value, str):
+        return LinearSchedule(float(value.partition("_")[2]), 0.0, 1.0)
+    if name == "train_freq" and isinstance(value, list):
+        return tuple(value)
+    if name == "replay_buffer_class" and value is not None:
+        return REPLAY_BUFFERS.resolve(value, source, name)
+    if name == "replay_buffer_kwargs" and value is not None:
+        return _kwargs_from(value, source, name)
+    return value
+
+
+def _resolve_classes(value: Any, allowlist: AllowList, source: str, key: str) -> list[tuple[Any, dict[str, Any]]]:
+    if value is None:
+        return []
+    if isinstance(value, list):
+        return [resolved for element in value for resolved in _resolve_classes(element, allowlist, source, key)]
+    if isinstance(value, dict):
+        ((name, kwargs),) = value.items()
+        return [(allowlist.resolve(name, source, key), dict(kwargs))]
+    return [(allowlist.resolve(value, source, key), {})]
+
+
+def _resolve_normalize(value: bool | dict[str, Any] | str, gamma: float | None, source: str) -> dict[str, Any] | None:
+    if value is False:
+        return None
+    kwargs = {} if value is True else _kwargs_from(value, source, "normalize")
+    unknown = sorted(set(kwargs) - NORMALIZE_KEYS)
+    if unknown:
+        raise HyperparamsError(
+            source, f"normalize.{unknown[0]}", f"unknown VecNormalize keyword; accepted: {', '.join(sorted(NORMALIZE_KEYS))}"
+        )
+    if gamma is not None:
+        # As the RL Zoo: the reward normalization discounts with the algorithm's gamma.
+        kwargs.setdefault("gamma", gamma)
+    return kwargs
