@@ -19,6 +19,18 @@ ENV_SPECS: dict[str, dict[str, Any]] = {
         "max_episode_steps": 200,
         "kwargs": {"noise_low": -0.1, "noise_high": 0.1},
     },
+    f"{NAMESPACE}/LidarObstacleCourse-v0": {
+        "entry_point": "sb3_adc_envs.lidar_course.env:LidarObstacleCourseEnv",
+        "max_episode_steps": 500,
+    },
+    f"{NAMESPACE}/LidarObstacleCourseNoisy-v0": {
+        "entry_point": "sb3_adc_envs.lidar_course.noisy:make_noisy_lidar_course",
+        "max_episode_steps": 500,
+        "kwargs": {"noise_low": -0.1, "noise_high": 0.1},
+    },
+    f"{NAMESPACE}/HighwayObstacle-v0": {
+        "entry_point": "sb3_adc_envs.highway_obstacle:HighwayObstacleEnv",
+    },
 }
 
 

@@ -1,0 +1,223 @@
+"""Raw environment throughput: steps per second under random actions, on one CPU core.
+
+Measures every sb3-adc environment next to Gymnasium's ``Pendulum-v1`` in the same run, at two levels:
+
+- ``core``: the object the registered entry point returns (the environment class itself, or for the noisy
+  lidar course the noise wrapper around it), stepped directly;
+- ``gym.make``: the same behind the wrappers ``gym.make`` adds by default (``TimeLimit``,
+  ``OrderEnforcing``, ``PassiveEnvChecker``), as RL libraries step it.
+
+Actions are drawn before the timed loop; the loop calls ``reset()`` whenever an episode ends (collisions are
+frequent under random steering), and those resets are part of the timing. Each measurement is repeated and
+the best repeat is kept. The process is pinned to one core.
+
+Usage::
+
+    python benchmarks/env_throughput.py              # full run, writes benchmarks/results/env_throughput.*
+    python benchmarks/env_throughput.py --quick      # a short smoke run (results not written)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.envs.registration import load_env_creator
+
+import sb3_adc
+
+RESULTS_DIR = Path(__file__).resolve().parent / "results"
+FIGURE_PATH = Path(__file__).resolve().parent.parent / "docs" / "_static" / "envs" / "env_throughput.png"
+
+#: Environment id -> number of steps per repeat in a full run.
+ENVIRONMENTS = {
+    "Pendulum-v1": 200_000,
+    "sb3_adc/LidarObstacleCourse-v0": 200_000,
+    "sb3_adc/LidarObstacleCourseNoisy-v0": 200_000,
+    "sb3_adc/HighwayObstacle-v0": 5_000,
+}
+LEVELS = ("core", "gym.make")
+#: The lidar course must reach this many core steps per second.
+LIDAR_TARGET_STEPS_PER_S = 10_000
+
+
+def make_env(env_id: str, level: str) -> gym.Env[Any, Any]:
+    """
+    The environment at one measurement level.
+
+    :param env_id: Registered id
+    :param level: ``"core"`` (what the entry point returns) or ``"gym.make"`` (with gym.make's default wrappers)
+    """
+    if level == "gym.make":
+        return gym.make(env_id)
+    spec = gym.spec(env_id)
+    creator = load_env_creator(spec.entry_point) if isinstance(spec.entry_point, str) else spec.entry_point
+    return creator(**spec.kwargs)
+
+
+def time_steps(env: gym.Env[Any, Any], n_steps: int, seed: int) -> tuple[float, int]:
+    """
+    Step an environment ``n_steps`` times under uniformly random actions.
+
+    :return: elapsed seconds and number of resets done inside the timed loop
+    """
+    env.action_space.seed(seed)
+    actions = [env.action_space.sample() for _ in range(n_steps)]
+    env.reset(seed=seed)
+    step = env.step
+    resets = 0
+    start = time.perf_counter()
+    for action in actions:
+        _, _, terminated, truncated, _ = step(action)
+        if terminated or truncated:
+            env.reset()
+            resets += 1
+    return time.perf_counter() - start, resets
+
+
+def pin_to_one_core() -> str:
+    """Pin this process to one CPU core (where the OS allows it); returns a description."""
+    if hasattr(os, "sched_setaffinity"):
+        core = min(os.sched_getaffinity(0))
+        os.sched_setaffinity(0, {core})
+        return f"pinned to core {core}"
+    return "not pinned (no sched_setaffinity on this OS)"
+
+
+def cpu_model() -> str:
+    """The CPU's model name, where /proc/cpuinfo tells it."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def run(scale: float, repeats: int) -> list[dict[str, Any]]:
+    """Measure every environment at every level; returns one row per (environment, level)."""
+    rows = []
+    for env_id, full_steps in ENVIRONMENTS.items():
+        n_steps = max(100, int(full_steps * scale))
+        for level in LEVELS:
+            env = make_env(env_id, level)
+            time_steps(env, min(n_steps, 1_000), seed=1)  # warm-up: imports, caches
+            best_seconds, resets = min(time_steps(env, n_steps, seed=repeat) for repeat in range(repeats))
+            env.close()
+            rows.append(
+                {
+                    "env_id": env_id,
+                    "level": level,
+                    "steps": n_steps,
+                    "resets": resets,
+                    "seconds": best_seconds,
+                    "steps_per_s": n_steps / best_seconds,
+                    "us_per_step": best_seconds / n_steps * 1e6,
+                }
+            )
+            print(f"  {env_id:<38} {level:<9} {n_steps / best_seconds:>12,.0f} steps/s", flush=True)
+    pendulum = {row["level"]: row["steps_per_s"] for row in rows if row["env_id"] == "Pendulum-v1"}
+    for row in rows:
+        row["ratio_to_pendulum"] = row["steps_per_s"] / pendulum[row["level"]]
+    return rows
+
+
+def print_table(rows: list[dict[str, Any]]) -> None:
+    """Print the results as a table."""
+    header = f"{'environment':<38} {'level':<9} {'steps/s':>10} {'us/step':>8} {'x Pendulum':>10} {'resets':>7}"
+    print(header)
+    print("-" * len(header))
+    for row in rows:
+        print(
+            f"{row['env_id']:<38} {row['level']:<9} {row['steps_per_s']:>10,.0f} {row['us_per_step']:>8.1f} "
+            f"{row['ratio_to_pendulum']:>10.2f} {row['resets']:>7}"
+        )
+
+
+def plot(rows: list[dict[str, Any]], path: Path) -> None:
+    """Bar chart of steps per second (log scale), core and gym.make side by side."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    env_ids = list(ENVIRONMENTS)
+    width = 0.38
+    fig, ax = plt.subplots(figsize=(8, 3.8))
+    for offset, level in zip((-width / 2, width / 2), LEVELS, strict=True):
+        values = [next(r["steps_per_s"] for r in rows if r["env_id"] == e and r["level"] == level) for e in env_ids]
+        bars = ax.bar(np.arange(len(env_ids)) + offset, values, width, label=level)
+        ax.bar_label(bars, labels=[f"{v:,.0f}" for v in values], fontsize=7)
+    ax.axhline(LIDAR_TARGET_STEPS_PER_S, color="tab:red", linestyle="--", linewidth=1, label="lidar course target")
+    ax.set_yscale("log")
+    ax.set_ylabel("steps / s (one core)")
+    ax.set_xticks(np.arange(len(env_ids)), [e.replace("sb3_adc/", "") for e in env_ids], fontsize=8)
+    ax.set_title("Environment throughput under random actions")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="1%% of the steps and one repeat; writes no results")
+    parser.add_argument("--repeats", type=int, default=3, help="repeats per measurement, the best is kept (default 3)")
+    args = parser.parse_args(argv)
+    if args.repeats < 1:
+        parser.error(f"--repeats must be >= 1, got {args.repeats}")
+
+    pinning = pin_to_one_core()
+    print(f"sb3-adc {sb3_adc.__version__}, Python {platform.python_version()}, {cpu_model()}, {pinning}")
+    rows = run(scale=0.01 if args.quick else 1.0, repeats=1 if args.quick else args.repeats)
+    print()
+    print_table(rows)
+    lidar = next(r for r in rows if r["env_id"] == "sb3_adc/LidarObstacleCourse-v0" and r["level"] == "core")
+    meets_target = lidar["steps_per_s"] >= LIDAR_TARGET_STEPS_PER_S
+    print(f"\nLidar course, core: {lidar['steps_per_s']:,.0f} steps/s (target {LIDAR_TARGET_STEPS_PER_S:,}): "
+          f"{'met' if meets_target else 'NOT met'}")
+    if args.quick:
+        return 0
+
+    import highway_env
+    import pybullet  # noqa: F401 (imported by the environments already; only its version is read)
+    import stable_baselines3
+
+    RESULTS_DIR.mkdir(parents=True, exist_ok=True)
+    metadata = {
+        "script": "benchmarks/env_throughput.py",
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "cpu": cpu_model(),
+        "pinning": pinning,
+        "repeats": args.repeats,
+        "gymnasium": gym.__version__,
+        "stable_baselines3": stable_baselines3.__version__,
+        "highway_env": getattr(highway_env, "__version__", "unknown"),
+        "numpy": np.__version__,
+        "lidar_target_steps_per_s": LIDAR_TARGET_STEPS_PER_S,
+        "lidar_target_met": meets_target,
+    }
+    (RESULTS_DIR / "env_throughput.json").write_text(json.dumps({"metadata": metadata, "results": rows}, indent=2) + "\n")
+    with (RESULTS_DIR / "env_throughput.csv").open("w") as csv:
+        columns = list(rows[0])
+        csv.write(",".join(columns) + "\n")
+        for row in rows:
+            csv.write(",".join(f"{row[c]:.6g}" if isinstance(row[c], float) else str(row[c]) for c in columns) + "\n")
+    plot(rows, FIGURE_PATH)
+    print(f"Wrote {RESULTS_DIR / 'env_throughput.json'}, {RESULTS_DIR / 'env_throughput.csv'} and {FIGURE_PATH}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

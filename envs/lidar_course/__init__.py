@@ -1,0 +1,15 @@
+"""The lidar obstacle course: a pybullet robot with a planar lidar in a walled course loaded from a file."""
+
+from sb3_adc_envs.lidar_course.course import Course, CourseError, StartPose, load_course, shipped_courses
+from sb3_adc_envs.lidar_course.env import LidarObstacleCourseEnv
+from sb3_adc_envs.lidar_course.noisy import make_noisy_lidar_course
+
+__all__ = [
+    "Course",
+    "CourseError",
+    "LidarObstacleCourseEnv",
+    "StartPose",
+    "load_course",
+    "make_noisy_lidar_course",
+    "shipped_courses",
+]

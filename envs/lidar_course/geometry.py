@@ -1,0 +1,158 @@
+"""Planar geometry of the lidar courses: polylines, corridor walls, distances (NumPy, no simulator).
+
+Points are ``(x, y)`` in metres; a *segment* array has shape ``(n, 4)`` with rows ``(x0, y0, x1, y1)``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: Angular step of the arcs that round a centre line's corners [rad] (about 7.5 degrees).
+ARC_STEP = math.radians(7.5)
+
+
+def polyline_segments(points: np.ndarray, closed: bool) -> np.ndarray:
+    """
+    Segments joining consecutive points of a polyline.
+
+    :param points: ``(n, 2)`` vertices
+    :param closed: Whether the last vertex joins the first
+    :return: ``(n, 4)`` segments if ``closed``, else ``(n - 1, 4)``
+    """
+    ends = np.roll(points, -1, axis=0) if closed else points[1:]
+    starts = points if closed else points[:-1]
+    return np.hstack([starts, ends])
+
+
+def round_corners(points: np.ndarray, radius: float) -> np.ndarray:
+    """
+    Replace every corner of a closed polyline by a circular arc of the given radius.
+
+    Each corner is cut back along both of its edges by ``radius / tan(half the turn's complement)`` and
+    the two cut points are joined by an arc sampled every :data:`ARC_STEP`. Straight vertices (no turn)
+    are dropped.
+
+    :param points: ``(n, 2)`` vertices of a closed polyline (the last vertex joins the first)
+    :param radius: Arc radius [m], ``> 0``
+    :return: ``(m, 2)`` vertices of the rounded closed polyline
+    :raises ValueError: if an edge is too short for the arcs at its two ends
+    """
+    n = len(points)
+    rounded: list[np.ndarray] = []
+    for i in range(n):
+        corner = points[i]
+        to_previous = points[i - 1] - corner
+        to_next = points[(i + 1) % n] - corner
+        length_previous = float(np.hypot(*to_previous))
+        length_next = float(np.hypot(*to_next))
+        u = to_previous / length_previous
+        w = to_next / length_next
+        # Interior angle between the two edges at this corner.
+        interior = math.acos(float(np.clip(np.dot(u, w), -1.0, 1.0)))
+        if math.pi - interior < 1e-9:
+            continue  # collinear vertex: nothing to round
+        cut = radius / math.tan(interior / 2.0)
+        if cut > length_previous / 2.0 + 1e-9 or cut > length_next / 2.0 + 1e-9:
+            raise ValueError(
+                f"corner {i} at ({corner[0]:g}, {corner[1]:g}) needs {cut:.3g} m of each adjacent edge for an arc of "
+                f"radius {radius:g} m, but its edges are {length_previous:.3g} m and {length_next:.3g} m long "
+                "(each may give at most half its length)"
+            )
+        bisector = (u + w) / np.hypot(*(u + w))
+        centre = corner + bisector * (radius / math.sin(interior / 2.0))
+        start = corner + u * cut
+        end = corner + w * cut
+        angle_start = math.atan2(start[1] - centre[1], start[0] - centre[0])
+        angle_end = math.atan2(end[1] - centre[1], end[0] - centre[0])
+        sweep = (angle_end - angle_start + math.pi) % (2.0 * math.pi) - math.pi
+        n_arc = max(2, math.ceil(abs(sweep) / ARC_STEP) + 1)
+        angles = angle_start + np.linspace(0.0, sweep, n_arc)
+        rounded.append(centre + radius * np.column_stack([np.cos(angles), np.sin(angles)]))
+    return np.vstack(rounded)
+
+
+def offset_closed_polyline(points: np.ndarray, offset: float) -> np.ndarray:
+    """
+    Offset a closed polyline sideways, with mitred joints.
+
+    :param points: ``(n, 2)`` vertices of a closed polyline
+    :param offset: Signed distance [m]: positive to the left of the direction of travel, negative to the right
+    :return: ``(n, 2)`` vertices of the offset polyline
+    """
+    directions = np.roll(points, -1, axis=0) - points
+    directions /= np.hypot(directions[:, 0], directions[:, 1])[:, None]
+    normals = np.column_stack([-directions[:, 1], directions[:, 0]])
+    # At vertex i the incoming edge is i - 1 and the outgoing edge is i.
+    incoming = np.roll(normals, 1, axis=0)
+    miter = incoming + normals
+    miter /= np.hypot(miter[:, 0], miter[:, 1])[:, None]
+    scale = offset / np.einsum("ij,ij->i", miter, normals)
+    return points + miter * scale[:, None]
+
+
+def point_segment_distances(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """
+    Euclidean distances from points to segments.
+
+    :param points: ``(2,)`` point or ``(m, 2)`` points
+    :param segments: ``(n, 4)`` segments
+    :return: ``(n,)`` distances for one point, ``(m, n)`` for several
+    """
+    starts = segments[:, :2]
+    deltas = segments[:, 2:] - starts
+    lengths_squared = np.einsum("ij,ij->i", deltas, deltas)
+    relative = np.asarray(points)[..., None, :] - starts
+    fraction = np.einsum("...ij,ij->...i", relative, deltas) / np.where(lengths_squared > 0.0, lengths_squared, 1.0)
+    fraction = np.clip(fraction, 0.0, 1.0)
+    offsets = relative - deltas * fraction[..., None]
+    return np.hypot(offsets[..., 0], offsets[..., 1])
+
+
+def closest_segment(point: np.ndarray, segments: np.ndarray) -> tuple[int, float]:
+    """
+    The segment nearest to a point.
+
+    :param point: ``(2,)`` point
+    :param segments: ``(n, 4)`` segments, ``n >= 1``
+    :return: index of the nearest segment and its distance
+    """
+    distances = point_segment_distances(point, segments)
+    index = int(np.argmin(distances))
+    return index, float(distances[index])
+
+
+def point_in_polygon(point: np.ndarray, polygon: np.ndarray) -> bool:
+    """
+    Even-odd rule test of whether a point lies inside a closed polygon.
+
+    :param point: ``(2,)`` point
+    :param polygon: ``(n, 2)`` vertices (the last joins the first; a repeated first vertex is allowed)
+    """
+    x, y = float(point[0]), float(point[1])
+    x0, y0 = polygon[:, 0], polygon[:, 1]
+    x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
+    crosses = (y0 > y) != (y1 > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x_cross = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+    return bool(np.count_nonzero(crosses & (x < x_cross)) % 2 == 1)
+
+
+def sample_polyline(points: np.ndarray, spacing: float, closed: bool) -> np.ndarray:
+    """
+    Points along a polyline, at most ``spacing`` apart (the vertices included).
+
+    :param points: ``(n, 2)`` vertices
+    :param spacing: Maximum distance between consecutive samples [m], ``> 0``
+    :param closed: Whether the last vertex joins the first
+    :return: ``(m, 2)`` samples
+    """
+    samples = []
+    for x0, y0, x1, y1 in polyline_segments(points, closed):
+        n = max(1, math.ceil(math.hypot(x1 - x0, y1 - y0) / spacing))
+        fractions = np.arange(n) / n
+        samples.append(np.column_stack([x0 + (x1 - x0) * fractions, y0 + (y1 - y0) * fractions]))
+    if not closed:
+        samples.append(points[-1:])
+    return np.vstack(samples)

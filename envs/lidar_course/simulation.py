@@ -1,0 +1,175 @@
+"""The pybullet world of one lidar course: ground, walls and a round robot with a planar lidar."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+
+import numpy as np
+import pybullet
+
+from sb3_adc_envs.lidar_course.course import Course
+
+#: Height of the walls [m].
+WALL_HEIGHT = 0.5
+#: Height of the robot's cylinder [m].
+ROBOT_HEIGHT = 0.2
+#: Gap between the ground and the bottom of the robot [m]: the robot never touches the ground plane.
+ROBOT_GROUND_CLEARANCE = 0.05
+#: Height of the lidar's rays, the centre of the robot's cylinder [m].
+SENSOR_HEIGHT = ROBOT_GROUND_CLEARANCE + ROBOT_HEIGHT / 2.0
+
+# Collision filter groups. A pair collides when each one's group is in the other's mask; the rays carry
+# Bullet's default group (1) and the mask below. Rays and the robot see walls only, never the robot or
+# the ground; the ground collides with nothing.
+_WALL_GROUP = 1
+_ROBOT_GROUP = 2
+_GROUND_GROUP = 4
+_ALL_GROUPS = 0xFFFF
+
+
+class CourseSimulation:
+    """
+    A pybullet physics client (``p.DIRECT``) holding one course and one robot.
+
+    The robot is a kinematic cylinder: :meth:`move_robot` places it with
+    ``resetBasePositionAndOrientation`` (no dynamics are simulated), asks pybullet whether it touches a
+    wall (broad phase ``getOverlappingObjects`` on the robot's bounding box, then ``getClosestPoints``
+    against the walls found there) and casts the lidar's rays with one ``rayTestBatch``. Rays start at
+    the robot's centre and are filtered to the walls' collision group, so they never hit the robot.
+
+    Every call passes this instance's ``physicsClientId``: several simulations run side by side in one
+    process. :meth:`close` disconnects the client; it is safe to call twice and runs on garbage collection.
+
+    :param course: The course to build
+    :param robot_radius: Radius of the robot's cylinder [m]
+    :param ray_angles: ``(n_rays,)`` directions of the rays relative to the robot's heading [rad]
+    :param max_range: Length of the rays [m]
+    """
+
+    def __init__(self, course: Course, robot_radius: float, ray_angles: np.ndarray, max_range: float):
+        self.course = course
+        self.robot_radius = robot_radius
+        self.max_range = max_range
+        self._client: int | None = pybullet.connect(pybullet.DIRECT)
+        client = self._client
+        ground = pybullet.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client),
+            physicsClientId=client,
+        )
+        pybullet.setCollisionFilterGroupMask(ground, -1, _GROUND_GROUP, 0, physicsClientId=client)
+        self.wall_ids = [self._create_wall(segment, course.wall_thickness) for segment in course.walls]
+        self._first_wall, self._last_wall = self.wall_ids[0], self.wall_ids[-1]
+        self.robot_id = pybullet.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=pybullet.createCollisionShape(
+                pybullet.GEOM_CYLINDER, radius=robot_radius, height=ROBOT_HEIGHT, physicsClientId=client
+            ),
+            basePosition=[course.start.x, course.start.y, SENSOR_HEIGHT],
+            physicsClientId=client,
+        )
+        pybullet.setCollisionFilterGroupMask(self.robot_id, -1, _ROBOT_GROUP, _WALL_GROUP, physicsClientId=client)
+
+        #: ``(n_rays, 2)`` ray vectors in the robot's frame (unit direction times ``max_range``).
+        self.ray_vectors = max_range * np.column_stack([np.cos(ray_angles), np.sin(ray_angles)])
+        n_rays = len(ray_angles)
+        self._ray_from = np.full((n_rays, 3), SENSOR_HEIGHT)
+        self._ray_to = np.full((n_rays, 3), SENSOR_HEIGHT)
+        self._rotation = np.empty((2, 2))
+        self._position = [0.0, 0.0, SENSOR_HEIGHT]
+        self._orientation = [0.0, 0.0, 0.0, 1.0]
+        self._aabb_min = [0.0, 0.0, ROBOT_GROUND_CLEARANCE]
+        self._aabb_max = [0.0, 0.0, ROBOT_GROUND_CLEARANCE + ROBOT_HEIGHT]
+
+    def _create_wall(self, segment: np.ndarray, thickness: float) -> int:
+        x0, y0, x1, y1 = (float(value) for value in segment)
+        length = math.hypot(x1 - x0, y1 - y0)
+        yaw = math.atan2(y1 - y0, x1 - x0)
+        # Half a thickness longer at both ends, so that the walls of a polyline overlap at its joints.
+        shape = pybullet.createCollisionShape(
+            pybullet.GEOM_BOX,
+            halfExtents=[length / 2.0 + thickness / 2.0, thickness / 2.0, WALL_HEIGHT / 2.0],
+            physicsClientId=self._client,
+        )
+        wall = pybullet.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=shape,
+            basePosition=[(x0 + x1) / 2.0, (y0 + y1) / 2.0, WALL_HEIGHT / 2.0],
+            baseOrientation=[0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)],
+            physicsClientId=self._client,
+        )
+        pybullet.setCollisionFilterGroupMask(wall, -1, _WALL_GROUP, _ALL_GROUPS, physicsClientId=self._client)
+        return int(wall)
+
+    @property
+    def client_id(self) -> int | None:
+        """The pybullet physics client id, ``None`` once closed."""
+        return self._client
+
+    def move_robot(self, x: float, y: float, heading: float, lidar_out: np.ndarray) -> bool:
+        """
+        Place the robot, read the lidar and tell whether the robot touches a wall.
+
+        :param x: Position [m]
+        :param y: Position [m]
+        :param heading: Heading [rad]
+        :param lidar_out: ``(n_rays,)`` array that receives the ray lengths divided by ``max_range``
+            (1 where a ray hits nothing)
+        :return: whether the robot overlaps a wall
+        """
+        client = self._client
+        position = self._position
+        position[0] = x
+        position[1] = y
+        orientation = self._orientation
+        orientation[2] = math.sin(heading / 2.0)
+        orientation[3] = math.cos(heading / 2.0)
+        pybullet.resetBasePositionAndOrientation(self.robot_id, position, orientation, physicsClientId=client)
+
+        cos_heading = math.cos(heading)
+        sin_heading = math.sin(heading)
+        rotation = self._rotation
+        rotation[0, 0] = cos_heading
+        rotation[0, 1] = sin_heading
+        rotation[1, 0] = -sin_heading
+        rotation[1, 1] = cos_heading
+        ray_to = self._ray_to
+        np.matmul(self.ray_vectors, rotation, out=ray_to[:, :2])
+        ray_to[:, 0] += x
+        ray_to[:, 1] += y
+        ray_from = self._ray_from
+        ray_from[:, 0] = x
+        ray_from[:, 1] = y
+        hits = pybullet.rayTestBatch(ray_from, ray_to, collisionFilterMask=_WALL_GROUP, physicsClientId=client)
+        for i, hit in enumerate(hits):
+            lidar_out[i] = hit[2]
+        return self._touches_wall(x, y)
+
+    def _touches_wall(self, x: float, y: float) -> bool:
+        radius = self.robot_radius
+        aabb_min = self._aabb_min
+        aabb_max = self._aabb_max
+        aabb_min[0] = x - radius
+        aabb_min[1] = y - radius
+        aabb_max[0] = x + radius
+        aabb_max[1] = y + radius
+        client = self._client
+        candidates = pybullet.getOverlappingObjects(aabb_min, aabb_max, physicsClientId=client)
+        if candidates:
+            first, last = self._first_wall, self._last_wall
+            for body, _ in candidates:
+                if first <= body <= last and pybullet.getClosestPoints(self.robot_id, body, 0.0, physicsClientId=client):
+                    return True
+        return False
+
+    def close(self) -> None:
+        """Disconnect the physics client (safe to call more than once)."""
+        client, self._client = self._client, None
+        if client is not None and pybullet is not None and pybullet.isConnected(client):
+            pybullet.disconnect(physicsClientId=client)
+
+    def __del__(self) -> None:
+        # At interpreter shutdown module globals may already be gone: never raise from here.
+        with contextlib.suppress(Exception):
+            self.close()
