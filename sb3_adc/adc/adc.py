@@ -13,7 +13,7 @@ from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.save_util import load_from_zip_file
-from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule, TensorDict
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, PyTorchObs, Schedule, TensorDict
 from stable_baselines3.common.utils import FloatSchedule, polyak_update, update_learning_rate
 from stable_baselines3.td3.td3 import TD3
 from torch.nn import functional as F
@@ -160,6 +160,7 @@ class ADC(TD3):
             _init_setup_model=False,
         )
         self.critic_learning_rate = critic_learning_rate
+        self._last_batch: tuple[PyTorchObs, th.Tensor] | None = None
         if _init_setup_model:
             self._setup_model()
 
@@ -213,13 +214,14 @@ class ADC(TD3):
                     noise = next_actions.clone().normal_(0, self.target_policy_noise)
                     noise = noise.clamp(-self.target_noise_clip, self.target_noise_clip)
                     next_actions = (next_actions + noise).clamp(-1, 1)
-                next_q_values = th.cat(self.critic_target(replay_data.next_observations, next_actions), dim=1)
-                next_q_values = next_q_values.min(dim=1, keepdim=True).values
-                target_q_values = replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_values
+                next_q_values = self.critic_target(replay_data.next_observations, next_actions)
+                # Clipped double-Q: the minimum over the critics (a no-op with the paper's single critic)
+                next_q_value = next_q_values[0] if len(next_q_values) == 1 else th.cat(next_q_values, dim=1).amin(1, True)
+                target_q_values = replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_value
 
             # Line 12: minimise the squared TD error of every dueling critic network
-            estimates = self.critic.estimate(replay_data.observations, replay_data.actions)
-            critic_loss = sum(F.mse_loss(estimate.q_value, target_q_values) for estimate in estimates)
+            current_q_values = self.critic(replay_data.observations, replay_data.actions)
+            critic_loss = sum(F.mse_loss(current_q, target_q_values) for current_q in current_q_values)
             assert isinstance(critic_loss, th.Tensor)
             critic_losses.append(critic_loss.item())
 
@@ -248,10 +250,19 @@ class ADC(TD3):
             self.logger.record("train/actor_loss", np.mean(actor_losses))
         self.logger.record("train/critic_loss", np.mean(critic_losses))
         if gradient_steps > 0:
-            # Diagnostics of the first critic on the last training batch
-            value, advantages = estimates[0].value.detach(), estimates[0].advantages.detach()
+            # The critic's streams on this batch are computed only when the logs are written (see `dump_logs`).
+            self._last_batch = (replay_data.observations, replay_data.actions)
+
+    def dump_logs(self) -> None:
+        """Write log data, with the critic's diagnostics on the last training batch: ``train/value_mean`` (mean of
+        the first critic's value stream) and ``train/advantage_std`` (spread of its advantage stream over the
+        intervals, averaged over the batch and the action dimensions)."""
+        if self._last_batch is not None:
+            with th.no_grad():
+                value, advantages, _ = self.critic.decompose(*self._last_batch)
             self.logger.record("train/value_mean", value.mean().item())
             self.logger.record("train/advantage_std", advantages.std(dim=-1).mean().item())
+        super().dump_logs()
 
     def learn(
         self: SelfADC,
@@ -272,8 +283,9 @@ class ADC(TD3):
         )
 
     def _excluded_save_params(self) -> list[str]:
-        # The critic schedule is rebuilt from `critic_learning_rate` and `learning_rate` on load.
-        return [*super()._excluded_save_params(), "critic_lr_schedule"]
+        # The critic schedule is rebuilt from `critic_learning_rate` and `learning_rate` on load;
+        # the last training batch is kept for the logged diagnostics only.
+        return [*super()._excluded_save_params(), "critic_lr_schedule", "_last_batch"]
 
     def set_parameters(
         self,
@@ -356,7 +368,12 @@ class ADC(TD3):
                 force_reset=force_reset,
                 **kwargs,
             )
-        except (zipfile.BadZipFile, EOFError, pickle.UnpicklingError, KeyError, RuntimeError) as error:
+        except (zipfile.BadZipFile, EOFError, pickle.UnpicklingError, KeyError, RuntimeError, AssertionError) as error:
+            cause = error.__context__
+            if isinstance(error, KeyError) and isinstance(cause, ValueError):
+                # SB3's loader retries a failed parameter load as an old DQN file and fails on a missing key:
+                # report the original failure.
+                raise ValueError(f"Cannot load the ADC model {path!s}: {cause}") from cause
             raise ValueError(f"{path!s} is not a readable ADC model file: {type(error).__name__}: {error}") from error
         except (ValueError, TypeError) as error:
             raise type(error)(f"Cannot load the ADC model {path!s}: {error}") from error

@@ -9,6 +9,11 @@ stream outputs one value per interval, and the Q-value of an action ``a`` uses t
     Q(s, a) = V(s) + A(s, z_a) - mean_z A(s, z)        (aggregation="mean", Eq. 12-14)
     Q(s, a) = V(s) + A(s, z_a) - max_z A(s, z)         (aggregation="max", Eq. 11)
 
+The centred advantage is linear in the vector of interval advantages: ``A(s, z_a) - mean_z A(s, z)`` is the
+dot product of ``A(s, .)`` with the weights ``e_{z_a} - 1/n`` (``e_k`` the k-th unit vector), and with
+``e_{z_a} - e_{argmax}`` for the max. The code computes it that way: one weight vector per sample, read from a
+precomputed table, then a product and a sum, which is the cheapest form for autograd.
+
 Actions are SB3's scaled actions in ``[-1, 1]``. With several action dimensions the advantage is factorised:
 one branch of ``n`` intervals per dimension, each branch centred on its own, and the centred branches summed.
 """
@@ -59,6 +64,8 @@ class UniformIntervalPartition(nn.Module):
     edges: th.Tensor
     centres: th.Tensor
     _inner_edges: th.Tensor
+    _unit_vectors: th.Tensor
+    _mean_centred_unit_vectors: th.Tensor
 
     def __init__(self, n_intervals: int):
         super().__init__()
@@ -66,9 +73,12 @@ class UniformIntervalPartition(nn.Module):
             raise ValueError(f"`n_intervals` must be an integer >= 2, got {n_intervals!r}.")
         self.n_intervals = n_intervals
         edges = th.linspace(-1.0, 1.0, n_intervals + 1)
+        unit_vectors = th.eye(n_intervals)
         self.register_buffer("edges", edges)
         self.register_buffer("centres", (edges[:-1] + edges[1:]) / 2, persistent=False)
         self.register_buffer("_inner_edges", edges[1:-1].contiguous(), persistent=False)
+        self.register_buffer("_unit_vectors", unit_vectors, persistent=False)
+        self.register_buffer("_mean_centred_unit_vectors", unit_vectors - 1.0 / n_intervals, persistent=False)
 
     def extra_repr(self) -> str:
         return f"n_intervals={self.n_intervals}"
@@ -80,43 +90,85 @@ class UniformIntervalPartition(nn.Module):
         :param actions: Scaled actions, any shape
         :return: ``int64`` tensor of the same shape, values in ``[0, n_intervals - 1]``
         """
-        return th.bucketize(actions.detach().contiguous(), self._inner_edges, right=True)
+        return th.bucketize(actions, self._inner_edges, right=True)
+
+    def selection_weights(self, actions: th.Tensor, interpolation: Interpolation) -> th.Tensor:
+        """
+        Weights over the intervals that read the advantage of each action: ``sum_z w_z A(s, z)``.
+
+        ``"none"`` (the paper): the unit vector of the interval that contains the action, so the advantage is
+        piecewise constant in the action. ``"linear"`` (an extension): linear interpolation between the two
+        interval centres nearest to the action (constant beyond the first and last centre), so the advantage is
+        piecewise linear in the action and passes a gradient to it.
+
+        :param actions: ``(batch, action_dim)`` scaled actions
+        :param interpolation: ``"none"`` or ``"linear"``
+        :return: ``(batch, action_dim, n_intervals)``, each row non-negative and summing to 1
+        """
+        if interpolation == "none":
+            return _rows(self._unit_vectors, self.index(actions))
+        n = self.n_intervals
+        # Position in units of intervals, measured from the first centre: centre k sits at position k.
+        position = ((actions + 1.0) * (n / 2.0) - 0.5).clamp(0.0, n - 1.0)
+        lower = position.detach().floor().clamp(max=n - 2).long()
+        upper_share = (position - lower).unsqueeze(-1)
+        return _rows(self._unit_vectors, lower) * (1.0 - upper_share) + _rows(self._unit_vectors, lower + 1) * upper_share
+
+    def centred_weights(
+        self,
+        actions: th.Tensor,
+        advantages: th.Tensor | None,
+        aggregation: Aggregation,
+        interpolation: Interpolation,
+    ) -> th.Tensor:
+        """
+        Weights ``c`` such that ``sum_z c_z A(s, z)`` is the centred advantage of each action branch:
+        ``A(s, z_a) - mean_z A(s, z)`` (Eq. 13) or ``A(s, z_a) - max_z A(s, z)`` (Eq. 11).
+
+        :param actions: ``(batch, action_dim)`` scaled actions
+        :param advantages: ``(batch, action_dim, n_intervals)``, used (without gradient) to find the maximum
+            for ``aggregation="max"``; not needed (``None``) for ``"mean"``
+        :param aggregation: ``"mean"`` or ``"max"``
+        :param interpolation: ``"none"`` or ``"linear"``
+        :return: ``(batch, action_dim, n_intervals)``
+        """
+        if aggregation == "mean" and interpolation == "none":
+            # The paper's case, in one lookup: e_{z_a} - 1/n.
+            return _rows(self._mean_centred_unit_vectors, self.index(actions))
+        weights = self.selection_weights(actions, interpolation)
+        if aggregation == "mean":
+            return weights - 1.0 / self.n_intervals
+        if advantages is None:
+            raise ValueError('`advantages` are needed to centre on their maximum (aggregation="max").')
+        # The gradient of max_z A is the unit vector of the arg max.
+        return weights - _rows(self._unit_vectors, advantages.detach().argmax(dim=-1))
 
     def select(self, advantages: th.Tensor, actions: th.Tensor, interpolation: Interpolation) -> th.Tensor:
         """
-        The advantage of each action, read from the per-interval advantages.
-
-        ``"none"`` (the paper): the advantage of the interval that contains the action, piecewise constant in
-        the action. ``"linear"`` (an extension): linear interpolation between the two interval centres
-        nearest to the action (constant beyond the first and last centre), so the advantage is piecewise
-        linear in the action and passes a gradient to it.
+        The advantage of each action (see :meth:`selection_weights`).
 
         :param advantages: ``(batch, action_dim, n_intervals)``
         :param actions: ``(batch, action_dim)`` scaled actions
         :param interpolation: ``"none"`` or ``"linear"``
         :return: ``(batch, action_dim)``
         """
-        if interpolation == "none":
-            return advantages.gather(-1, self.index(actions).unsqueeze(-1)).squeeze(-1)
-        n = self.n_intervals
-        # Position in units of intervals, measured from the first centre: centre k sits at position k.
-        position = ((actions + 1.0) * (n / 2.0) - 0.5).clamp(0.0, n - 1.0)
-        lower = position.detach().floor().clamp(max=n - 2).long()
-        weight = (position - lower).unsqueeze(-1)
-        neighbours = advantages.gather(-1, th.stack((lower, lower + 1), dim=-1))
-        return (neighbours[..., :1] * (1.0 - weight) + neighbours[..., 1:] * weight).squeeze(-1)
+        return (advantages * self.selection_weights(actions, interpolation)).sum(dim=-1)
 
 
-def aggregate(value: th.Tensor, advantages: th.Tensor, selected: th.Tensor, aggregation: Aggregation) -> th.Tensor:
+def _rows(table: th.Tensor, index: th.Tensor) -> th.Tensor:
+    """``table[index]`` for a 2-D table and an integer index of any shape (``index_select``: faster than indexing)."""
+    return table.index_select(0, index.flatten()).view(*index.shape, table.shape[1])
+
+
+def aggregate(value: th.Tensor, advantages: th.Tensor, centred_weights: th.Tensor) -> th.Tensor:
     """
     Combine the value and advantage streams into ``Q`` (Eq. 11 or Eq. 12-14), one centred advantage branch
     per action dimension, summed over the dimensions.
 
     :param value: ``(batch, 1)``
     :param advantages: ``(batch, action_dim, n_intervals)``
-    :param selected: ``(batch, action_dim)``, the advantage of the taken action in each branch
-    :param aggregation: ``"mean"`` or ``"max"``
+    :param centred_weights: ``(batch, action_dim, n_intervals)`` from
+        :meth:`UniformIntervalPartition.centred_weights`
     :return: ``(batch, 1)``
     """
-    baseline = advantages.mean(dim=-1) if aggregation == "mean" else advantages.amax(dim=-1)
-    return value + (selected - baseline).sum(dim=-1, keepdim=True)
+    return value + (advantages * centred_weights).flatten(1).sum(dim=1, keepdim=True)

@@ -1,6 +1,7 @@
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+import itertools
+from typing import Any
 
 import torch as th
 from gymnasium import spaces
@@ -13,26 +14,13 @@ from stable_baselines3.common.torch_layers import (
     NatureCNN,
     create_mlp,
 )
-from stable_baselines3.common.type_aliases import Schedule
+from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from stable_baselines3.td3.policies import TD3Policy
 from torch import nn
+from torch.nn import functional as F
 
 from sb3_adc.adc.intervals import Aggregation, Interpolation, UniformIntervalPartition, aggregate, validate_interval_options
 from sb3_adc.common.spaces import check_action_space
-
-
-class DuelingEstimate(NamedTuple):
-    """
-    The outputs of one dueling critic network for a batch of (observation, action) pairs.
-
-    :param q_value: ``(batch, 1)`` aggregated Q-value
-    :param value: ``(batch, 1)`` output of the value stream
-    :param advantages: ``(batch, action_dim, n_intervals)`` output of the advantage stream
-    """
-
-    q_value: th.Tensor
-    value: th.Tensor
-    advantages: th.Tensor
 
 
 class DuelingIntervalNetwork(nn.Module):
@@ -40,6 +28,10 @@ class DuelingIntervalNetwork(nn.Module):
     One dueling critic network: a shared trunk over ``[features, action]`` (the paper's first layer
     ``theta^Q``), a value stream (``beta``) and an advantage stream (``alpha``) with ``n_intervals`` outputs
     per action dimension.
+
+    The first layers of the two streams read the same trunk output, so one ``nn.Linear`` (``stream_inputs``)
+    computes both and its output is split between them: mathematically two separate layers, at half the
+    per-layer cost of the optimizer and the target updates.
 
     :param input_dim: ``features_dim + action_dim``
     :param action_dim: Number of action dimensions (advantage branches)
@@ -64,23 +56,70 @@ class DuelingIntervalNetwork(nn.Module):
         super().__init__()
         self.action_dim = action_dim
         self.n_intervals = n_intervals
-        trunk_layers = create_mlp(input_dim, -1, net_arch, activation_fn)
         trunk_dim = net_arch[-1] if net_arch else input_dim
+        value_sizes = [*value_net_arch, 1]
+        advantage_sizes = [*advantage_net_arch, action_dim * n_intervals]
         # An empty trunk is the identity: both streams then see [features, action] directly.
-        self.trunk = nn.Sequential(*trunk_layers)
-        self.value_stream = nn.Sequential(*create_mlp(trunk_dim, 1, value_net_arch, activation_fn))
-        self.advantage_stream = nn.Sequential(
-            *create_mlp(trunk_dim, action_dim * n_intervals, advantage_net_arch, activation_fn)
-        )
+        self.trunk = nn.Sequential(*create_mlp(input_dim, -1, net_arch, activation_fn))
+        self.stream_inputs = nn.Linear(trunk_dim, value_sizes[0] + advantage_sizes[0])
+        self.split_sizes = (value_sizes[0], advantage_sizes[0])
+        self.value_stream = nn.Sequential(*_stream_tail(value_sizes, activation_fn))
+        self.advantage_stream = nn.Sequential(*_stream_tail(advantage_sizes, activation_fn))
+        #: Both streams are a single linear layer: ``V`` and ``A`` are the head's outputs, ``[V | A]``.
+        self.single_layer_streams = not value_net_arch and not advantage_net_arch
+
+    def head(self, features_actions: th.Tensor) -> th.Tensor:
+        """
+        The trunk and the first layer of both streams.
+
+        :param features_actions: ``(batch, features_dim + action_dim)``
+        :return: ``(batch, value_first + advantage_first)``, the first-layer outputs of the value stream then of
+            the advantage stream
+        """
+        return self.stream_inputs(self.trunk(features_actions))
+
+    def streams(self, head_outputs: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """
+        The rest of both streams, from the output of :meth:`head`.
+
+        :param head_outputs: ``(batch, value_first + advantage_first)``
+        :return: value ``(batch, 1)`` and advantages ``(batch, action_dim, n_intervals)``
+        """
+        value, advantages = head_outputs.split(self.split_sizes, dim=1)
+        # Streams without hidden layers are empty: skip the call (this runs three times per gradient step).
+        if self.value_stream:
+            value = self.value_stream(value)
+        if self.advantage_stream:
+            advantages = self.advantage_stream(advantages)
+        return value, advantages.view(-1, self.action_dim, self.n_intervals)
 
     def forward(self, features_actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
         """
         :param features_actions: ``(batch, features_dim + action_dim)``
         :return: value ``(batch, 1)`` and advantages ``(batch, action_dim, n_intervals)``
         """
-        hidden = self.trunk(features_actions)
-        advantages = self.advantage_stream(hidden).view(-1, self.action_dim, self.n_intervals)
-        return self.value_stream(hidden), advantages
+        return self.streams(self.head(features_actions))
+
+    def stream_layer_sizes(self) -> dict[str, list[tuple[int, int]]]:
+        """``(in_features, out_features)`` of every linear layer of the trunk and of each stream."""
+        trunk = [(m.in_features, m.out_features) for m in self.trunk if isinstance(m, nn.Linear)]
+        first_value, first_advantage = self.split_sizes
+        first_in = self.stream_inputs.in_features
+        value = [(first_in, first_value)] + [
+            (m.in_features, m.out_features) for m in self.value_stream if isinstance(m, nn.Linear)
+        ]
+        advantage = [(first_in, first_advantage)] + [
+            (m.in_features, m.out_features) for m in self.advantage_stream if isinstance(m, nn.Linear)
+        ]
+        return {"trunk": trunk, "value": value, "advantage": advantage}
+
+
+def _stream_tail(sizes: list[int], activation_fn: type[nn.Module]) -> list[nn.Module]:
+    """The layers of a stream after its first linear layer: an activation and a linear layer per step."""
+    layers: list[nn.Module] = []
+    for in_features, out_features in itertools.pairwise(sizes):
+        layers += [activation_fn(), nn.Linear(in_features, out_features)]
+    return layers
 
 
 class DuelingIntervalCritic(BaseModel):
@@ -170,26 +209,19 @@ class DuelingIntervalCritic(BaseModel):
             self.add_module(f"qf{idx}", q_net)
             self.q_networks.append(q_net)
 
-    def _estimate(self, q_net: DuelingIntervalNetwork, features: th.Tensor, actions: th.Tensor) -> DuelingEstimate:
-        value, advantages = q_net(th.cat([features, actions], dim=1))
-        selected = self.partition.select(advantages, actions, self.advantage_interpolation)
-        return DuelingEstimate(aggregate(value, advantages, selected, self.aggregation), value, advantages)
-
-    def estimate(self, obs: th.Tensor, actions: th.Tensor) -> tuple[DuelingEstimate, ...]:
-        """
-        Q-value, value and advantages of every critic network.
-
-        Gradients follow the rules of :meth:`forward`.
-
-        :param obs: Observations
-        :param actions: Scaled actions ``(batch, action_dim)`` in ``[-1, 1]``
-        :return: One :class:`DuelingEstimate` per critic network
-        """
-        # Learn the features extractor using the policy loss only
-        # when the features_extractor is shared with the actor
-        with th.set_grad_enabled(not self.share_features_extractor):
-            features = self.extract_features(obs, self.features_extractor)
-        return tuple(self._estimate(q_net, features, actions) for q_net in self.q_networks)
+    def _q_value(self, q_net: DuelingIntervalNetwork, features: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        head_outputs = q_net.head(th.cat([features, actions], dim=1))
+        if q_net.single_layer_streams:
+            # V and A are the head's outputs themselves, [V | A]: Eq. 14 is one weighted sum with weights [1 | c],
+            # the cheapest form for autograd (`aggregate` computes the same from the two streams).
+            advantages = (
+                head_outputs[:, 1:].view(-1, q_net.action_dim, q_net.n_intervals) if self.aggregation == "max" else None
+            )
+            weights = self.partition.centred_weights(actions, advantages, self.aggregation, self.advantage_interpolation)
+            return (head_outputs * F.pad(weights.flatten(1), (1, 0), value=1.0)).sum(dim=1, keepdim=True)
+        value, advantages = q_net.streams(head_outputs)
+        weights = self.partition.centred_weights(actions, advantages, self.aggregation, self.advantage_interpolation)
+        return aggregate(value, advantages, weights)
 
     def forward(self, obs: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, ...]:
         """
@@ -197,7 +229,11 @@ class DuelingIntervalCritic(BaseModel):
         :param actions: Scaled actions ``(batch, action_dim)`` in ``[-1, 1]``
         :return: One ``(batch, 1)`` Q-value tensor per critic network
         """
-        return tuple(estimate.q_value for estimate in self.estimate(obs, actions))
+        # Learn the features extractor using the policy loss only
+        # when the features_extractor is shared with the actor
+        with th.set_grad_enabled(not self.share_features_extractor):
+            features = self.extract_features(obs, self.features_extractor)
+        return tuple(self._q_value(q_net, features, actions) for q_net in self.q_networks)
 
     def q1_forward(self, obs: th.Tensor, actions: th.Tensor) -> th.Tensor:
         """
@@ -209,9 +245,9 @@ class DuelingIntervalCritic(BaseModel):
         """
         with th.no_grad():
             features = self.extract_features(obs, self.features_extractor)
-        return self._estimate(self.q_networks[0], features, actions).q_value
+        return self._q_value(self.q_networks[0], features, actions)
 
-    def decompose(self, obs: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
+    def decompose(self, obs: PyTorchObs, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
         """
         The two streams of the first critic network, for diagnostics and tests.
 
