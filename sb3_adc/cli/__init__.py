@@ -1,0 +1,50 @@
+"""
+The ``sb3-adc`` command (also ``python -m sb3_adc``): ``train``, ``enjoy``, ``benchmark`` and ``plot``.
+
+Run ``sb3-adc SUB-COMMAND --help`` for the options of each.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+import sb3_adc
+from sb3_adc.cli import benchmark_command, enjoy_command, plot_command, train_command
+from sb3_adc.cli.common import CommandError
+from sb3_adc.config import HyperparamsError
+from sb3_adc.experiment import RunInterrupted
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser of ``sb3-adc`` and its sub-commands."""
+    parser = argparse.ArgumentParser(
+        prog="sb3-adc",
+        description="Train, evaluate, benchmark and plot Actor-Dueling-Critic (ADC) and its baselines, RL-Zoo style.",
+    )
+    parser.add_argument("--version", action="version", version=f"sb3-adc {sb3_adc.__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="{train,enjoy,benchmark,plot}", required=True)
+    for command in (train_command, enjoy_command, benchmark_command, plot_command):
+        command.add_parser(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """
+    Run ``sb3-adc`` with the given arguments (default: ``sys.argv[1:]``).
+
+    :param argv: The command-line arguments
+    :return: The exit status: 0 on success, 1 if benchmark runs failed, 2 for invalid input, 130 when interrupted
+    """
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.handler(args))
+    except (HyperparamsError, CommandError, FileNotFoundError, FileExistsError) as error:
+        print(f"sb3-adc {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except RunInterrupted:
+        return 130
+
+
+__all__ = ["build_parser", "main"]

@@ -1,0 +1,126 @@
+"""``sb3-adc benchmark``: a grid of algorithms x environments x seeds, in parallel, resumable."""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+from tqdm import tqdm
+
+from sb3_adc.cli.common import CommandError, apply_runtime_arguments, key_values
+from sb3_adc.config import ALGORITHMS, check_env_id
+from sb3_adc.experiment.benchmark import BenchmarkSettings, RunOutcome, run_benchmark
+
+DESCRIPTION = """\
+Train every algorithm on every environment with every seed, one run per process (local backend)
+or per Ray task (--backend ray), and write three tidy CSVs to the log folder:
+
+  evaluations.csv  one row per run and evaluation: algo, env, seed, timesteps, mean_return,
+                   std_return, min_return, max_return, mean_ep_length, n_episodes
+  episodes.csv     one row per run and training episode: algo, env, seed, episode, timesteps,
+                   return, length
+  final.csv        one row per run: the final evaluation
+
+Runs live in LOG_FOLDER/ALGO/ENV_seedSEED/. Re-running the same command keeps finished runs (they
+are skipped), resumes interrupted ones from their last checkpoint and starts the rest.
+Then: sb3-adc plot --csv LOG_FOLDER/evaluations.csv
+
+examples:
+  sb3-adc benchmark --algos adc ddpg --envs Pendulum-v1 sb3_adc/NoisyPendulum-v1 --seeds 0 1 2 3 4
+  sb3-adc benchmark --algos adc ddpg --envs Pendulum-v1 --n-seeds 10 --backend ray --address auto
+"""
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """
+    Register the sub-command.
+
+    :param subparsers: The ``sb3-adc`` sub-parsers
+    """
+    parser = subparsers.add_parser(
+        "benchmark",
+        help="train a grid of algorithms x environments x seeds in parallel (resumable), write tidy CSVs",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--algos", nargs="+", required=True, choices=ALGORITHMS.names(), metavar="ALGO", help="algorithms")
+    parser.add_argument("--envs", nargs="+", required=True, metavar="ENV", help="environment ids")
+    seeds = parser.add_mutually_exclusive_group()
+    seeds.add_argument("--seeds", nargs="+", type=int, metavar="SEED", help="seeds (default: 0 1 2)")
+    seeds.add_argument("--n-seeds", type=int, help="use seeds 0 .. N-1")
+    parser.add_argument("-n", "--n-timesteps", type=int, default=None, help="budget of every run (default: each entry's)")
+    parser.add_argument("-f", "--log-folder", default="benchmark", help="folder of the runs and CSVs (default: benchmark)")
+    parser.add_argument("--conf-folder", default=None, help="folder with {algo}.yml files to use instead of the shipped ones")
+    parser.add_argument("-params", "--hyperparams", nargs="+", metavar="KEY:VALUE", help="overrides applied to every run")
+    parser.add_argument("--eval-freq", type=int, default=None, help="evaluate every K timesteps (default: 20 per run)")
+    parser.add_argument("--eval-episodes", type=int, default=5, help="episodes per evaluation (default: 5)")
+    parser.add_argument("--final-eval-episodes", type=int, default=10, help="episodes of the final evaluation (default: 10)")
+    parser.add_argument("--backend", choices=["local", "ray"], default="local", help="local process pool or Ray tasks")
+    parser.add_argument("--workers", type=int, default=None, help="local backend: parallel processes (default: CPU count)")
+    parser.add_argument("--address", default=None, help="Ray backend: cluster address (default: start a local Ray)")
+    parser.add_argument("--device", default="cpu", help="PyTorch device of the runs (default: cpu)")
+    parser.add_argument("--num-threads", type=int, default=1, help=argparse.SUPPRESS)
+    parser.add_argument("--gym-packages", nargs="+", default=[], metavar="MODULE", help="modules registering environments")
+    parser.set_defaults(handler=run)
+
+
+def _seeds(args: argparse.Namespace) -> list[int]:
+    if args.n_seeds is not None:
+        if args.n_seeds < 1:
+            raise CommandError(f"--n-seeds must be >= 1, got {args.n_seeds}")
+        return list(range(args.n_seeds))
+    return list(args.seeds) if args.seeds else [0, 1, 2]
+
+
+def run(args: argparse.Namespace) -> int:
+    """
+    Run the sub-command.
+
+    :param args: The parsed command line
+    :return: The exit status (1 if some runs failed)
+    """
+    apply_runtime_arguments(args)
+    if args.gym_packages and args.backend == "ray":
+        raise CommandError("--gym-packages is not forwarded to Ray workers; register environments in an imported package")
+    for env_id in args.envs:
+        check_env_id(env_id)
+    settings = BenchmarkSettings(
+        algos=list(dict.fromkeys(args.algos)),
+        env_ids=list(dict.fromkeys(args.envs)),
+        seeds=list(dict.fromkeys(_seeds(args))),
+        log_folder=args.log_folder,
+        n_timesteps=args.n_timesteps,
+        overrides=key_values(args.hyperparams, "-params"),
+        conf_folder=args.conf_folder,
+        eval_freq=args.eval_freq,
+        eval_episodes=args.eval_episodes,
+        final_eval_episodes=args.final_eval_episodes,
+        device=args.device,
+    )
+    n_runs = len(settings.grid())
+    print(
+        f"Benchmark: {len(settings.algos)} algorithms x {len(settings.env_ids)} environments x {len(settings.seeds)} seeds "
+        f"= {n_runs} runs in {settings.log_folder} ({args.backend} backend)"
+    )
+    progress = tqdm(total=n_runs, unit="run")
+
+    def report(outcome: RunOutcome, done: int, total: int) -> None:
+        final = outcome.final
+        result = "" if final is None else f": final return {final['mean_return']:.2f} +/- {final['std_return']:.2f}"
+        progress.write(f"[{done}/{total}] {outcome.spec} {outcome.status}{result}")
+        if outcome.status == "failed":
+            progress.write(outcome.error)
+        progress.update(1)
+
+    try:
+        result = run_benchmark(settings, backend=args.backend, workers=args.workers, address=args.address, report=report)
+    finally:
+        progress.close()
+    for name, path in result.tables.items():
+        print(f"Wrote {name}: {path}")
+    if result.failures:
+        failed = ", ".join(str(outcome.spec) for outcome in result.failures)
+        print(f"{len(result.failures)} of {n_runs} runs failed ({failed}); re-run the same command to retry them.")
+        return 1
+    print(f"Next: sb3-adc plot --csv {os.path.join(settings.log_folder, 'evaluations.csv')}")
+    return 0

@@ -1,0 +1,78 @@
+"""Pieces shared by the sub-commands of ``sb3-adc``."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import random
+
+import torch as th
+
+from sb3_adc.config import ALGORITHMS, parse_overrides
+
+
+class CommandError(Exception):
+    """A problem with the command line that ends the command with a message (exit status 2)."""
+
+
+def add_algo_argument(parser: argparse.ArgumentParser, required: bool = True) -> None:
+    """
+    ``--algo``, one of the registered algorithms.
+
+    :param parser: The sub-command's parser
+    :param required: Whether the option is required
+    """
+    parser.add_argument("--algo", required=required, choices=ALGORITHMS.names(), help="algorithm")
+
+
+def add_runtime_arguments(parser: argparse.ArgumentParser) -> None:
+    """
+    ``--device``, ``--num-threads`` and ``--gym-packages``.
+
+    :param parser: The sub-command's parser
+    """
+    parser.add_argument("--device", default="auto", help="PyTorch device: auto, cpu, cuda (default: auto)")
+    parser.add_argument(
+        "--num-threads",
+        type=int,
+        default=1,
+        help="PyTorch CPU threads (default: 1, the fastest for small networks; -1: PyTorch's choice)",
+    )
+    parser.add_argument(
+        "--gym-packages",
+        nargs="+",
+        default=[],
+        metavar="MODULE",
+        help="modules to import first, to register their Gymnasium environments",
+    )
+
+
+def apply_runtime_arguments(args: argparse.Namespace) -> None:
+    """
+    Set the number of threads and import the ``--gym-packages``.
+
+    :param args: The parsed command line
+    """
+    if args.num_threads > 0:
+        th.set_num_threads(args.num_threads)
+    for module in args.gym_packages:
+        importlib.import_module(module)
+
+
+def key_values(items: list[str] | None, option: str) -> dict[str, object]:
+    """
+    ``key:value`` items of an option, each value read as YAML.
+
+    :param items: The items (``None``: none given)
+    :param option: The option's name, for error messages
+    """
+    return parse_overrides(items or [], source=f"command line {option}")
+
+
+def resolve_seed(seed: int) -> int:
+    """
+    The seed to use: ``seed``, or a random one for a negative ``seed`` (as the RL Zoo).
+
+    :param seed: The ``--seed`` value
+    """
+    return seed if seed >= 0 else random.SystemRandom().randrange(2**31 - 1)

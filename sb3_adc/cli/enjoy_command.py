@@ -1,0 +1,95 @@
+"""``sb3-adc enjoy``: play a trained model, print its returns, optionally record a GIF or a video."""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+import numpy as np
+
+from sb3_adc.cli.common import CommandError, add_algo_argument, add_runtime_arguments, apply_runtime_arguments
+from sb3_adc.experiment.enjoy import MODEL_CHOICES, default_seed, load_model, load_run, model_path, play, write_recording
+from sb3_adc.experiment.layout import env_name, latest_run_dir
+
+DESCRIPTION = """\
+Load a model trained by `sb3-adc train`, run episodes with it in the run's environment (same
+wrappers and normalization statistics), and print the return of each episode and their mean.
+
+examples:
+  sb3-adc enjoy --algo adc --env Pendulum-v1                      # the latest run in ./logs
+  sb3-adc enjoy --algo adc --env Pendulum-v1 --exp-id 2 --model best -n 10
+  sb3-adc enjoy --run-dir logs/adc/Pendulum-v1_1 --gif pendulum.gif
+"""
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """
+    Register the sub-command.
+
+    :param subparsers: The ``sb3-adc`` sub-parsers
+    """
+    parser = subparsers.add_parser(
+        "enjoy",
+        help="play a trained model and print its returns; --gif/--video record a rollout",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    add_algo_argument(parser, required=False)
+    parser.add_argument("--env", help="environment id")
+    parser.add_argument("-f", "--log-folder", default="logs", help="log folder (default: logs)")
+    parser.add_argument("--exp-id", type=int, default=0, help="run id (default: 0, the latest run)")
+    parser.add_argument("--run-dir", help="the run's folder (instead of --algo, --env, --log-folder, --exp-id)")
+    parser.add_argument("--model", choices=MODEL_CHOICES, default="final", help="which model of the run (default: final)")
+    parser.add_argument("-n", "--n-episodes", type=int, default=5, help="episodes to play (default: 5)")
+    parser.add_argument("--seed", type=int, default=None, help="environment seed (default: that of the run's evaluations)")
+    parser.add_argument("--stochastic", action="store_true", help="sample actions instead of deterministic ones")
+    parser.add_argument("--gif", metavar="PATH", help="record the first episode as a GIF")
+    parser.add_argument("--video", metavar="PATH", help="record the first episode as a video (.mp4; needs imageio-ffmpeg)")
+    parser.add_argument("--fps", type=int, default=30, help="frames per second of the recording (default: 30)")
+    add_runtime_arguments(parser)
+    parser.set_defaults(handler=run)
+
+
+def _run_dir(args: argparse.Namespace) -> str:
+    if args.run_dir is not None:
+        return str(args.run_dir)
+    if args.algo is None or args.env is None:
+        raise CommandError("give --run-dir, or --algo and --env")
+    if args.exp_id > 0:
+        return os.path.join(args.log_folder, args.algo, f"{env_name(args.env)}_{args.exp_id}")
+    run_dir = latest_run_dir(args.log_folder, args.algo, args.env)
+    if run_dir is None:
+        raise CommandError(f"no run of {args.algo} on {args.env} in {os.path.join(args.log_folder, args.algo)}")
+    return run_dir
+
+
+def run(args: argparse.Namespace) -> int:
+    """
+    Run the sub-command.
+
+    :param args: The parsed command line
+    :return: The exit status
+    """
+    apply_runtime_arguments(args)
+    if args.n_episodes < 1:
+        raise CommandError(f"-n/--n-episodes must be >= 1, got {args.n_episodes}")
+    if args.fps < 1:
+        raise CommandError(f"--fps must be >= 1, got {args.fps}")
+    settings, config, layout = load_run(_run_dir(args))
+    path, statistics = model_path(layout, args.model)
+    model = load_model(config, path, device=args.device)
+    seed = default_seed(settings) if args.seed is None else args.seed
+    print(f"Playing {path} ({settings.algo} on {settings.env_id}) for {args.n_episodes} episodes, seed {seed}")
+    record = args.gif is not None or args.video is not None
+    rollouts = play(model, config, args.n_episodes, seed, statistics, deterministic=not args.stochastic, record=record)
+    for index, (episode_return, length) in enumerate(zip(rollouts.returns, rollouts.lengths, strict=True), start=1):
+        print(f"Episode {index}: return {episode_return:.2f}, length {length}")
+    print(
+        f"Mean return {np.mean(rollouts.returns):.2f} +/- {np.std(rollouts.returns):.2f} over {len(rollouts.returns)} "
+        f"{'stochastic' if args.stochastic else 'deterministic'} episodes"
+    )
+    for output in (args.gif, args.video):
+        if output is not None:
+            write_recording(rollouts.frames, output, args.fps)
+            print(f"Recorded the first episode ({len(rollouts.frames)} frames) in {output}")
+    return 0

@@ -1,0 +1,130 @@
+"""``sb3-adc train``: train an algorithm on an environment, in the RL-Zoo log layout."""
+
+from __future__ import annotations
+
+import argparse
+
+from sb3_adc.cli.common import (
+    CommandError,
+    add_algo_argument,
+    add_runtime_arguments,
+    apply_runtime_arguments,
+    key_values,
+    resolve_seed,
+)
+from sb3_adc.config import check_env_id
+from sb3_adc.experiment import TrainSettings, find_run, resume, train
+
+DESCRIPTION = """\
+Train an algorithm on an environment with the hyperparameters of its YAML file (the shipped
+{algo}.yml, or -conf FILE), evaluating it periodically and checkpointing it, then print the final
+evaluation: mean +/- std return over deterministic episodes.
+
+The run is written to LOG_FOLDER/ALGO/ENV_N/ (the RL-Zoo layout): evaluations.npz, monitor CSVs,
+the final model ENV.zip, best_model.zip, checkpoints, and ENV/config.yml (the resolved
+hyperparameters). Ctrl-C saves a checkpoint; --resume continues from the last one.
+
+examples:
+  sb3-adc train --algo adc --env sb3_adc/NoisyPendulum-v1
+  sb3-adc train --algo ddpg --env Pendulum-v1 --seed 3 -n 5000 -params learning_rate:0.0005
+  sb3-adc train --algo adc --env Pendulum-v1 --resume            # the latest run of adc on Pendulum-v1
+  sb3-adc train --resume logs/adc/Pendulum-v1_2 -n 40000         # a given run, with a larger budget
+"""
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """
+    Register the sub-command.
+
+    :param subparsers: The ``sb3-adc`` sub-parsers
+    """
+    parser = subparsers.add_parser(
+        "train",
+        help="train an algorithm on an environment (RL-Zoo log layout, checkpoints, resume)",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    add_algo_argument(parser, required=False)
+    parser.add_argument("--env", help="environment id, e.g. Pendulum-v1 or sb3_adc/NoisyPendulum-v1")
+    parser.add_argument("--seed", type=int, default=-1, help="random seed (default: -1, a random seed)")
+    parser.add_argument("-n", "--n-timesteps", type=int, default=None, help="training budget, replacing n_timesteps")
+    parser.add_argument("-conf", "--conf-file", default=None, help="hyperparameter file (default: the shipped {algo}.yml)")
+    parser.add_argument("-f", "--log-folder", default="logs", help="log folder (default: logs)")
+    parser.add_argument(
+        "-params",
+        "--hyperparams",
+        nargs="+",
+        metavar="KEY:VALUE",
+        help="override hyperparameters, values read as YAML: learning_rate:0.001 train_freq:[1,episode]",
+    )
+    parser.add_argument("--env-kwargs", nargs="+", metavar="KEY:VALUE", help="keyword arguments of gym.make (YAML values)")
+    parser.add_argument(
+        "--eval-freq", type=int, default=None, help="evaluate every K timesteps (default: 20 evaluations per run; <= 0: never)"
+    )
+    parser.add_argument("--eval-episodes", type=int, default=5, help="episodes per periodic evaluation (default: 5)")
+    parser.add_argument("--n-eval-envs", type=int, default=1, help="environments of the periodic evaluations (default: 1)")
+    parser.add_argument(
+        "--save-freq", type=int, default=None, help="checkpoint every K timesteps (default: at every evaluation; <= 0: never)"
+    )
+    parser.add_argument("--keep-checkpoints", type=int, default=2, help="checkpoints kept (default: 2, the latest)")
+    parser.add_argument("--final-eval-episodes", type=int, default=10, help="episodes of the final evaluation (default: 10)")
+    parser.add_argument(
+        "--vec-env", choices=["dummy", "subproc"], default="dummy", help="vectorized env type (default: dummy)"
+    )
+    parser.add_argument("--verbose", type=int, default=0, help="SB3 verbosity: 0 quiet, 1 training logs (default: 0)")
+    parser.add_argument("--no-progress-bar", action="store_true", help="do not show the progress bar")
+    parser.add_argument(
+        "--resume",
+        nargs="?",
+        const="latest",
+        metavar="RUN_DIR",
+        help="continue a run from its last checkpoint: RUN_DIR, or (without value) the latest run of --algo on --env",
+    )
+    add_runtime_arguments(parser)
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """
+    Run the sub-command.
+
+    :param args: The parsed command line
+    :return: The exit status
+    """
+    apply_runtime_arguments(args)
+    progress_bar = not args.no_progress_bar
+    if args.resume is not None:
+        if args.resume == "latest":
+            if args.algo is None or args.env is None:
+                raise CommandError("--resume without RUN_DIR needs --algo and --env (the latest run of them is resumed)")
+            run_dir = find_run(args.log_folder, args.algo, args.env)
+        else:
+            run_dir = args.resume
+        resume(run_dir, n_timesteps=args.n_timesteps, progress_bar=progress_bar, verbose=args.verbose)
+        return 0
+    if args.algo is None or args.env is None:
+        raise CommandError("--algo and --env are required (or --resume RUN_DIR)")
+    check_env_id(args.env)
+    seed = resolve_seed(args.seed)
+    settings = TrainSettings(
+        algo=args.algo,
+        env_id=args.env,
+        seed=seed,
+        conf_file=args.conf_file,
+        overrides=key_values(args.hyperparams, "-params"),
+        env_kwargs=key_values(args.env_kwargs, "--env-kwargs"),
+        n_timesteps=args.n_timesteps,
+        log_folder=args.log_folder,
+        eval_freq=args.eval_freq,
+        eval_episodes=args.eval_episodes,
+        n_eval_envs=args.n_eval_envs,
+        save_freq=args.save_freq,
+        keep_checkpoints=args.keep_checkpoints,
+        final_eval_episodes=args.final_eval_episodes,
+        vec_env=args.vec_env,
+        device=args.device,
+        verbose=args.verbose,
+        progress_bar=progress_bar,
+    )
+    train(settings)
+    return 0

@@ -1,0 +1,163 @@
+"""Callbacks of a training run: periodic evaluation and checkpoints that a resumed run continues seamlessly."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
+from stable_baselines3.common.vec_env import VecEnv
+
+from sb3_adc.experiment.layout import Checkpoint, RunLayout
+
+
+@dataclass
+class EvaluationHistory:
+    """
+    The periodic evaluations of a run (the content of ``evaluations.npz``).
+
+    :param timesteps: Timestep of each evaluation
+    :param results: Episode returns of each evaluation
+    :param ep_lengths: Episode lengths of each evaluation
+    """
+
+    timesteps: list[int] = field(default_factory=list)
+    results: list[list[float]] = field(default_factory=list)
+    ep_lengths: list[list[int]] = field(default_factory=list)
+
+    @classmethod
+    def load(cls, path: str) -> EvaluationHistory:
+        """
+        Read an ``evaluations.npz`` (an empty history if the file does not exist).
+
+        :param path: The file
+        """
+        if not os.path.isfile(path):
+            return cls()
+        with np.load(path) as data:
+            return cls(
+                timesteps=[int(step) for step in data["timesteps"]],
+                results=[[float(value) for value in row] for row in data["results"]],
+                ep_lengths=[[int(value) for value in row] for row in data["ep_lengths"]],
+            )
+
+    def until(self, timesteps: int) -> EvaluationHistory:
+        """
+        The evaluations made at or before a timestep.
+
+        :param timesteps: The last timestep kept
+        """
+        keep = [index for index, step in enumerate(self.timesteps) if step <= timesteps]
+        return EvaluationHistory(
+            [self.timesteps[i] for i in keep], [self.results[i] for i in keep], [self.ep_lengths[i] for i in keep]
+        )
+
+    def save(self, path: str) -> None:
+        """
+        Write the history as ``evaluations.npz`` (the format of SB3's ``EvalCallback``).
+
+        :param path: The file
+        """
+        np.savez(path, timesteps=self.timesteps, results=self.results, ep_lengths=self.ep_lengths)
+
+
+class PeriodicEvalCallback(EvalCallback):
+    """
+    SB3's ``EvalCallback``, scheduled on the timestep count rather than on its own call count, and started from
+    the evaluations of an interrupted run: a resumed run evaluates at the same timesteps, keeps the earlier
+    results in ``evaluations.npz`` and only saves ``best_model.zip`` when it beats them.
+
+    :param eval_env: The evaluation environments
+    :param every: Evaluate every this many timesteps (all training environments together)
+    :param history: Evaluations made before (a resumed run)
+    :param n_eval_episodes: Episodes per evaluation
+    :param run_dir: Folder of ``evaluations.npz`` and ``best_model.zip``
+    :param verbose: 1 to print each evaluation
+    """
+
+    def __init__(
+        self,
+        eval_env: VecEnv,
+        every: int,
+        history: EvaluationHistory,
+        n_eval_episodes: int,
+        run_dir: str,
+        verbose: int = 0,
+    ):
+        super().__init__(
+            eval_env,
+            n_eval_episodes=n_eval_episodes,
+            eval_freq=1,
+            log_path=run_dir,
+            best_model_save_path=run_dir,
+            deterministic=True,
+            verbose=verbose,
+        )
+        self.every = every
+        self.next_evaluation = every
+        self.evaluations_timesteps = list(history.timesteps)
+        self.evaluations_results = list(history.results)
+        self.evaluations_length = list(history.ep_lengths)
+        if history.results:
+            self.best_mean_reward = max(float(np.mean(row)) for row in history.results)
+
+    def _init_callback(self) -> None:
+        super()._init_callback()
+        # `self.num_timesteps` is only updated at the first step: read the model's count (a resumed run's).
+        self.next_evaluation = (self.model.num_timesteps // self.every + 1) * self.every
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps < self.next_evaluation:
+            return True
+        self.next_evaluation = (self.num_timesteps // self.every + 1) * self.every
+        return super()._on_step()
+
+
+class CheckpointSaver(BaseCallback):
+    """
+    Save the model, its replay buffer and its ``VecNormalize`` statistics every ``every`` timesteps, keeping the
+    ``keep`` latest checkpoints. Give it after the evaluation callback: a checkpoint then includes the evaluation
+    of its timestep.
+
+    :param layout: The run's paths
+    :param every: Timesteps between checkpoints
+    :param keep: Number of checkpoints kept (older ones are deleted)
+    """
+
+    def __init__(self, layout: RunLayout, every: int, keep: int):
+        super().__init__()
+        self.layout = layout
+        self.every = every
+        self.keep = keep
+        self.next_checkpoint = every
+
+    def _init_callback(self) -> None:
+        self.next_checkpoint = (self.model.num_timesteps // self.every + 1) * self.every
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps >= self.next_checkpoint:
+            self.next_checkpoint = (self.num_timesteps // self.every + 1) * self.every
+            self.save()
+        return True
+
+    def save(self) -> Checkpoint:
+        """Save a checkpoint at the current timestep now (also used when training is interrupted)."""
+        checkpoint = self.layout.checkpoint(self.model.num_timesteps)
+        # Replay buffer and statistics first: a checkpoint counts once its model zip exists.
+        if hasattr(self.model, "save_replay_buffer") and getattr(self.model, "replay_buffer", None) is not None:
+            self.model.save_replay_buffer(checkpoint.replay_buffer)
+        vec_normalize = self.model.get_vec_normalize_env()
+        if vec_normalize is not None:
+            vec_normalize.save(checkpoint.vecnormalize)
+        partial = checkpoint.model + ".partial"
+        self.model.save(partial)
+        os.replace(partial, checkpoint.model)
+        self._prune()
+        return checkpoint
+
+    def _prune(self) -> None:
+        for old in self.layout.checkpoints()[: -self.keep]:
+            for path in (old.model, old.replay_buffer, old.vecnormalize):
+                if os.path.exists(path):
+                    os.remove(path)

@@ -1,0 +1,93 @@
+"""The final evaluation of a trained model: mean and standard deviation of the return over deterministic episodes."""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.evaluation import evaluate_policy
+from stable_baselines3.common.vec_env import VecEnv
+
+
+@dataclass
+class FinalEvaluation:
+    """
+    Returns of the final model over deterministic episodes.
+
+    :param algo: The algorithm's name
+    :param env_id: The environment id
+    :param seed: The run's seed
+    :param timesteps: Timesteps the model was trained for
+    :param returns: Return of each episode
+    :param lengths: Length of each episode
+    """
+
+    algo: str
+    env_id: str
+    seed: int
+    timesteps: int
+    returns: list[float]
+    lengths: list[int]
+
+    @property
+    def mean_return(self) -> float:
+        return float(np.mean(self.returns))
+
+    @property
+    def std_return(self) -> float:
+        return float(np.std(self.returns))
+
+    def summary(self) -> str:
+        """One line: ``Final evaluation of adc on Pendulum-v1 (seed 0, 20000 steps): -152.3 +/- 80.1 ...``."""
+        return (
+            f"Final evaluation of {self.algo} on {self.env_id} (seed {self.seed}, {self.timesteps} steps): "
+            f"mean return {self.mean_return:.2f} +/- {self.std_return:.2f} over {len(self.returns)} deterministic episodes"
+        )
+
+    def save(self, path: str) -> None:
+        """
+        Write the evaluation as JSON (with its mean and std), through a temporary file.
+
+        :param path: The file
+        """
+        data = {**asdict(self), "mean_return": self.mean_return, "std_return": self.std_return}
+        temporary = path + ".partial"
+        with open(temporary, "w", encoding="utf-8") as stream:
+            json.dump(data, stream, indent=2)
+        os.replace(temporary, path)
+
+    @classmethod
+    def load(cls, path: str) -> FinalEvaluation:
+        """
+        Read an evaluation written by :meth:`save`.
+
+        :param path: The file
+        """
+        with open(path, encoding="utf-8") as stream:
+            data = json.load(stream)
+        return cls(**{key: data[key] for key in ("algo", "env_id", "seed", "timesteps", "returns", "lengths")})
+
+
+def evaluate_final(model: BaseAlgorithm, env: VecEnv, n_episodes: int, algo: str, env_id: str, seed: int) -> FinalEvaluation:
+    """
+    Run ``n_episodes`` deterministic episodes of ``model`` on ``env``.
+
+    :param model: The trained model
+    :param env: The evaluation environments (statistics of ``VecNormalize`` already synced, updates off)
+    :param n_episodes: Number of episodes
+    :param algo: The algorithm's name (recorded)
+    :param env_id: The environment id (recorded)
+    :param seed: The run's seed (recorded)
+    """
+    returns, lengths = evaluate_policy(model, env, n_eval_episodes=n_episodes, deterministic=True, return_episode_rewards=True)
+    return FinalEvaluation(
+        algo=algo,
+        env_id=env_id,
+        seed=seed,
+        timesteps=int(model.num_timesteps),
+        returns=[float(value) for value in np.atleast_1d(returns)],
+        lengths=[int(value) for value in np.atleast_1d(lengths)],
+    )

@@ -1,0 +1,180 @@
+"""
+The RL-Zoo log layout of a training run.
+
+A run of ``algo`` on ``env_id`` lives in ``{log_folder}/{algo}/{env_name}_{run_id}/`` (``env_name`` is the
+id with ``/`` replaced by ``-``, ``run_id`` counts from 1), holding::
+
+    {env_name}.zip                          final model
+    best_model.zip                          best model of the periodic evaluations
+    evaluations.npz                         periodic evaluations (timesteps, results, ep_lengths)
+    0.monitor.csv, 1.monitor.csv, ...       training episodes of each environment
+    rl_model_{t}_steps.zip                  checkpoint: model at timestep t
+    rl_model_replay_buffer_{t}_steps.pkl    checkpoint: replay buffer
+    rl_model_vecnormalize_{t}_steps.pkl     checkpoint: VecNormalize statistics (with `normalize`)
+    {env_name}/config.yml                   the resolved hyperparameters
+    {env_name}/args.yml                     the run settings (algorithm, seed, budget, evaluation ...)
+    {env_name}/vecnormalize.pkl             final VecNormalize statistics (with `normalize`)
+    {env_name}/final_evaluation.json        the final evaluation; written last: the run is finished
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+from dataclasses import dataclass
+
+CHECKPOINT_PREFIX = "rl_model"
+_CHECKPOINT_PATTERN = re.compile(rf"^{CHECKPOINT_PREFIX}_(\d+)_steps\.zip$")
+
+
+def env_name(env_id: str) -> str:
+    """
+    The environment's name in paths: the id with ``/`` replaced by ``-`` (as the RL Zoo).
+
+    :param env_id: The Gymnasium id
+    """
+    return env_id.replace("/", "-")
+
+
+def run_ids(log_folder: str, algo: str, env_id: str) -> list[int]:
+    """
+    The run ids of the existing runs of ``algo`` on ``env_id``, sorted.
+
+    :param log_folder: The log folder
+    :param algo: The algorithm's name
+    :param env_id: The environment id
+    """
+    prefix = env_name(env_id) + "_"
+    folder = os.path.join(log_folder, algo)
+    ids = []
+    for path in glob.glob(os.path.join(glob.escape(folder), glob.escape(prefix) + "[0-9]*")):
+        suffix = os.path.basename(path)[len(prefix) :]
+        if suffix.isdigit() and os.path.isdir(path):
+            ids.append(int(suffix))
+    return sorted(ids)
+
+
+def new_run_dir(log_folder: str, algo: str, env_id: str) -> str:
+    """
+    The folder of a new run: the next free run id.
+
+    :param log_folder: The log folder
+    :param algo: The algorithm's name
+    :param env_id: The environment id
+    """
+    ids = run_ids(log_folder, algo, env_id)
+    return os.path.join(log_folder, algo, f"{env_name(env_id)}_{(ids[-1] if ids else 0) + 1}")
+
+
+def latest_run_dir(log_folder: str, algo: str, env_id: str) -> str | None:
+    """
+    The folder of the latest run (highest run id), or ``None`` if there is none.
+
+    :param log_folder: The log folder
+    :param algo: The algorithm's name
+    :param env_id: The environment id
+    """
+    ids = run_ids(log_folder, algo, env_id)
+    return os.path.join(log_folder, algo, f"{env_name(env_id)}_{ids[-1]}") if ids else None
+
+
+@dataclass(frozen=True)
+class Checkpoint:
+    """
+    The files of one checkpoint.
+
+    :param timesteps: The timestep it was taken at
+    :param model: The model zip
+    :param replay_buffer: The replay buffer pickle (off-policy algorithms)
+    :param vecnormalize: The VecNormalize statistics pickle (runs with ``normalize``)
+    """
+
+    timesteps: int
+    model: str
+    replay_buffer: str
+    vecnormalize: str
+
+
+@dataclass(frozen=True)
+class RunLayout:
+    """
+    The paths of one run.
+
+    :param run_dir: The run's folder
+    :param env_id: The environment id
+    """
+
+    run_dir: str
+    env_id: str
+
+    @property
+    def params_dir(self) -> str:
+        """``{run_dir}/{env_name}``: configuration, statistics and final evaluation."""
+        return os.path.join(self.run_dir, env_name(self.env_id))
+
+    @property
+    def final_model(self) -> str:
+        return os.path.join(self.run_dir, f"{env_name(self.env_id)}.zip")
+
+    @property
+    def best_model(self) -> str:
+        return os.path.join(self.run_dir, "best_model.zip")
+
+    @property
+    def evaluations(self) -> str:
+        return os.path.join(self.run_dir, "evaluations.npz")
+
+    @property
+    def config(self) -> str:
+        return os.path.join(self.params_dir, "config.yml")
+
+    @property
+    def args(self) -> str:
+        return os.path.join(self.params_dir, "args.yml")
+
+    @property
+    def vecnormalize(self) -> str:
+        return os.path.join(self.params_dir, "vecnormalize.pkl")
+
+    @property
+    def final_evaluation(self) -> str:
+        return os.path.join(self.params_dir, "final_evaluation.json")
+
+    def monitor_file(self, rank: int) -> str:
+        """
+        The monitor CSV of one training environment (SB3's ``Monitor`` adds ``.monitor.csv``).
+
+        :param rank: The environment's index
+        """
+        return os.path.join(self.run_dir, str(rank))
+
+    def monitor_files(self) -> list[str]:
+        """The existing monitor CSVs, by environment index."""
+        files = glob.glob(os.path.join(glob.escape(self.run_dir), "*.monitor.csv"))
+        return sorted(files, key=lambda path: int(os.path.basename(path).split(".")[0]))
+
+    def checkpoint(self, timesteps: int) -> Checkpoint:
+        """
+        The files of the checkpoint at a timestep.
+
+        :param timesteps: The timestep
+        """
+
+        def path(kind: str, extension: str) -> str:
+            return os.path.join(self.run_dir, f"{CHECKPOINT_PREFIX}_{kind}{timesteps}_steps.{extension}")
+
+        return Checkpoint(timesteps, path("", "zip"), path("replay_buffer_", "pkl"), path("vecnormalize_", "pkl"))
+
+    def checkpoints(self) -> list[Checkpoint]:
+        """The checkpoints present, oldest first."""
+        steps = []
+        for name in os.listdir(self.run_dir) if os.path.isdir(self.run_dir) else []:
+            match = _CHECKPOINT_PATTERN.match(name)
+            if match:
+                steps.append(int(match.group(1)))
+        return [self.checkpoint(timesteps) for timesteps in sorted(steps)]
+
+    def is_finished(self) -> bool:
+        """Whether the run completed (its final evaluation is written last)."""
+        return os.path.isfile(self.final_evaluation)

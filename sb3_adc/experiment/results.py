@@ -1,0 +1,144 @@
+"""
+Tidy tables of the results of runs, for benchmarks and plots.
+
+- evaluation curves (``evaluations.csv``): one row per run and periodic evaluation;
+- training episodes (``episodes.csv``): one row per run and training episode;
+- final evaluations (``final.csv``): one row per run.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from sb3_adc.experiment.callbacks import EvaluationHistory
+from sb3_adc.experiment.envs import TOTAL_STEPS_KEY
+from sb3_adc.experiment.evaluation import FinalEvaluation
+from sb3_adc.experiment.layout import RunLayout
+from sb3_adc.experiment.monitor_files import read_monitor
+
+EVALUATION_COLUMNS = (
+    "algo",
+    "env",
+    "seed",
+    "timesteps",
+    "mean_return",
+    "std_return",
+    "min_return",
+    "max_return",
+    "mean_ep_length",
+    "n_episodes",
+)
+EPISODE_COLUMNS = ("algo", "env", "seed", "episode", "timesteps", "return", "length")
+FINAL_COLUMNS = ("algo", "env", "seed", "timesteps", "mean_return", "std_return", "n_episodes")
+
+Row = dict[str, Any]
+
+
+def evaluation_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
+    """
+    The periodic evaluations of a run, one row each (columns :data:`EVALUATION_COLUMNS`).
+
+    :param layout: The run's paths
+    :param algo: The algorithm's name
+    :param seed: The run's seed
+    """
+    history = EvaluationHistory.load(layout.evaluations)
+    rows = []
+    for step, returns, lengths in zip(history.timesteps, history.results, history.ep_lengths, strict=True):
+        values = np.asarray(returns, dtype=np.float64)
+        rows.append(
+            {
+                "algo": algo,
+                "env": layout.env_id,
+                "seed": seed,
+                "timesteps": int(step),
+                "mean_return": float(values.mean()),
+                "std_return": float(values.std()),
+                "min_return": float(values.min()),
+                "max_return": float(values.max()),
+                "mean_ep_length": float(np.mean(lengths)),
+                "n_episodes": len(values),
+            }
+        )
+    return rows
+
+
+def episode_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
+    """
+    The training episodes of a run, in the order they ended (columns :data:`EPISODE_COLUMNS`).
+
+    ``timesteps`` is the run's timestep count when the episode ended (steps of its environment times the
+    number of environments).
+
+    :param layout: The run's paths
+    :param algo: The algorithm's name
+    :param seed: The run's seed
+    """
+    files = layout.monitor_files()
+    frames = []
+    for path in files:
+        frame = read_monitor(path)
+        steps = frame[TOTAL_STEPS_KEY] if TOTAL_STEPS_KEY in frame else frame["l"].cumsum()
+        frames.append(pd.DataFrame({"timesteps": steps * len(files), "return": frame["r"], "length": frame["l"]}))
+    if not frames:
+        return []
+    episodes = pd.concat(frames).sort_values("timesteps", kind="stable").reset_index(drop=True)
+    return [
+        {
+            "algo": algo,
+            "env": layout.env_id,
+            "seed": seed,
+            "episode": index + 1,
+            "timesteps": int(row.timesteps),
+            "return": float(row["return"]),
+            "length": int(row.length),
+        }
+        for index, row in episodes.iterrows()
+    ]
+
+
+def final_row(layout: RunLayout, algo: str, seed: int) -> Row | None:
+    """
+    The final evaluation of a finished run (columns :data:`FINAL_COLUMNS`), ``None`` if it has not finished.
+
+    :param layout: The run's paths
+    :param algo: The algorithm's name
+    :param seed: The run's seed
+    """
+    if not layout.is_finished():
+        return None
+    final = FinalEvaluation.load(layout.final_evaluation)
+    return {
+        "algo": algo,
+        "env": layout.env_id,
+        "seed": seed,
+        "timesteps": final.timesteps,
+        "mean_return": final.mean_return,
+        "std_return": final.std_return,
+        "n_episodes": len(final.returns),
+    }
+
+
+def write_table(rows: list[Row], columns: tuple[str, ...], path: str) -> pd.DataFrame:
+    """
+    Write rows as a CSV with the given columns, sorted by algorithm, environment, seed and the next column.
+
+    :param rows: The rows
+    :param columns: The columns, in order
+    :param path: The CSV file (written through a temporary file)
+    :return: The table
+    """
+    table = pd.DataFrame(rows, columns=list(columns))
+    if not table.empty:
+        table = table.sort_values(list(columns[:4]), kind="stable").reset_index(drop=True)
+    directory = os.path.dirname(path)
+    if directory:
+        os.makedirs(directory, exist_ok=True)
+    temporary = path + ".partial"
+    table.to_csv(temporary, index=False)
+    os.replace(temporary, path)
+    return table

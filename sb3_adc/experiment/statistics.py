@@ -1,0 +1,216 @@
+"""
+Statistics of benchmark results with rliable (Agarwal et al., 2021): interquartile mean (IQM) and mean with
+95% stratified-bootstrap confidence intervals, per environment and algorithm, and across-run variance curves.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+
+import numpy as np
+import pandas as pd
+from rliable import library as rly
+from rliable import metrics
+from scipy.stats import trim_mean
+
+#: Coverage of the confidence intervals.
+CONFIDENCE = 0.95
+FINAL_PERFORMANCE_COLUMNS = (
+    "env",
+    "algo",
+    "n_runs",
+    "iqm",
+    "iqm_ci_low",
+    "iqm_ci_high",
+    "mean",
+    "mean_ci_low",
+    "mean_ci_high",
+)
+CURVE_COLUMNS = (
+    "env",
+    "algo",
+    "timesteps",
+    "n_runs",
+    "mean",
+    "mean_ci_low",
+    "mean_ci_high",
+    "iqm",
+    "variance",
+    "variance_ci_low",
+    "variance_ci_high",
+)
+
+
+def _bootstrap(
+    scores: np.ndarray, func: Callable[[np.ndarray], np.ndarray], reps: int, seed: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Point estimates and 95% stratified-bootstrap intervals (rows: low, high) of ``func(scores)``."""
+    if scores.shape[0] < 2:
+        point = func(scores)
+        return point, np.stack([point, point])
+    with warnings.catch_warnings():
+        # rliable 1.2 seeds arch's bootstrap with `random_state`, which arch 7 deprecates.
+        warnings.filterwarnings("ignore", category=FutureWarning, module="arch")
+        points, intervals = rly.get_interval_estimates(
+            {"scores": scores},
+            func,
+            reps=reps,
+            confidence_interval_size=CONFIDENCE,
+            random_state=np.random.RandomState(seed),
+        )
+    return np.asarray(points["scores"]), np.asarray(intervals["scores"])
+
+
+def final_performance(final: pd.DataFrame, reps: int = 2000, seed: int = 0) -> pd.DataFrame:
+    """
+    IQM and mean of the final returns of each algorithm on each environment, with 95% stratified-bootstrap CIs.
+
+    :param final: One row per run, with columns ``env``, ``algo`` and ``mean_return``
+        (the ``final.csv`` of a benchmark, or the last evaluation of each run)
+    :param reps: Bootstrap replications
+    :param seed: Seed of the bootstrap
+    :return: One row per (env, algo), columns :data:`FINAL_PERFORMANCE_COLUMNS`
+    """
+    rows = []
+    for (env, algo), group in final.groupby(["env", "algo"], sort=True):
+        scores = group["mean_return"].to_numpy(dtype=np.float64).reshape(-1, 1)
+        point, interval = _bootstrap(
+            scores, lambda x: np.array([metrics.aggregate_iqm(x), metrics.aggregate_mean(x)]), reps, seed
+        )
+        rows.append(
+            {
+                "env": env,
+                "algo": algo,
+                "n_runs": scores.shape[0],
+                "iqm": point[0],
+                "iqm_ci_low": interval[0, 0],
+                "iqm_ci_high": interval[1, 0],
+                "mean": point[1],
+                "mean_ci_low": interval[0, 1],
+                "mean_ci_high": interval[1, 1],
+            }
+        )
+    return pd.DataFrame(rows, columns=list(FINAL_PERFORMANCE_COLUMNS))
+
+
+def last_evaluations(evaluations: pd.DataFrame) -> pd.DataFrame:
+    """
+    The last periodic evaluation of each run (a stand-in for ``final.csv``).
+
+    :param evaluations: The evaluation curves (``evaluations.csv``)
+    """
+    ordered = evaluations.sort_values("timesteps", kind="stable")
+    return ordered.groupby(["env", "algo", "seed"], sort=True).tail(1).reset_index(drop=True)
+
+
+def run_matrix(table: pd.DataFrame, column: str, value: str) -> tuple[np.ndarray, np.ndarray]:
+    """
+    The values of each run (rows, by seed) at each point of ``column`` that every run has.
+
+    :param table: Rows of one (env, algo), with a ``seed`` column
+    :param column: The x axis (``timesteps`` or ``episode``)
+    :param value: The y values
+    :return: The x values and a ``(n_runs, n_points)`` matrix
+    """
+    pivot = table.pivot_table(index="seed", columns=column, values=value, aggfunc="mean").dropna(axis=1)
+    return pivot.columns.to_numpy(), pivot.to_numpy(dtype=np.float64)
+
+
+def _curve_metrics(scores: np.ndarray) -> np.ndarray:
+    """Mean, IQM and (for two runs or more) variance across runs at each point; ``scores``: (runs, 1, points)."""
+    per_run = scores[:, 0, :]
+    variance = per_run.var(axis=0, ddof=1) if per_run.shape[0] > 1 else np.full(per_run.shape[1], np.nan)
+    return np.concatenate([per_run.mean(axis=0), trim_mean(per_run, 0.25, axis=0), variance])
+
+
+def learning_curves(evaluations: pd.DataFrame, reps: int = 2000, seed: int = 0) -> pd.DataFrame:
+    """
+    Across runs, at each evaluation timestep: the mean return with its 95% stratified-bootstrap CI, the IQM,
+    and the variance of the returns (the paper's Figures 5 and 8) with its CI.
+
+    Only the timesteps evaluated in every run of an (env, algo) are kept.
+
+    :param evaluations: The evaluation curves (``evaluations.csv``)
+    :param reps: Bootstrap replications
+    :param seed: Seed of the bootstrap
+    :return: One row per (env, algo, timesteps), columns :data:`CURVE_COLUMNS`
+    """
+    frames = []
+    for (env, algo), group in evaluations.groupby(["env", "algo"], sort=True):
+        steps, matrix = run_matrix(group, "timesteps", "mean_return")
+        if matrix.size == 0:
+            continue
+        n_points = len(steps)
+        point, interval = _bootstrap(matrix[:, None, :], _curve_metrics, reps, seed)
+        frames.append(
+            pd.DataFrame(
+                {
+                    "env": env,
+                    "algo": algo,
+                    "timesteps": steps.astype(np.int64),
+                    "n_runs": matrix.shape[0],
+                    "mean": point[:n_points],
+                    "mean_ci_low": interval[0, :n_points],
+                    "mean_ci_high": interval[1, :n_points],
+                    "iqm": point[n_points : 2 * n_points],
+                    "variance": point[2 * n_points :],
+                    "variance_ci_low": interval[0, 2 * n_points :],
+                    "variance_ci_high": interval[1, 2 * n_points :],
+                }
+            )
+        )
+    if not frames:
+        return pd.DataFrame(columns=list(CURVE_COLUMNS))
+    return pd.concat(frames, ignore_index=True)[list(CURVE_COLUMNS)]
+
+
+def episode_variance(episodes: pd.DataFrame, window: int = 10) -> pd.DataFrame:
+    """
+    Across-run variance of the training-episode returns at each episode index (the x axis of the paper's
+    Figures 5 and 8), and its moving average over ``window`` episodes.
+
+    :param episodes: The training episodes (``episodes.csv``)
+    :param window: Episodes of the moving average
+    :return: Columns ``env``, ``algo``, ``episode``, ``n_runs``, ``variance``, ``variance_smoothed``
+    """
+    frames = []
+    for (env, algo), group in episodes.groupby(["env", "algo"], sort=True):
+        index, matrix = run_matrix(group, "episode", "return")
+        if matrix.shape[0] < 2 or matrix.shape[1] == 0:
+            continue
+        variance = matrix.var(axis=0, ddof=1)
+        smoothed = pd.Series(variance).rolling(window, min_periods=1).mean().to_numpy()
+        frames.append(
+            pd.DataFrame(
+                {
+                    "env": env,
+                    "algo": algo,
+                    "episode": index.astype(np.int64),
+                    "n_runs": matrix.shape[0],
+                    "variance": variance,
+                    "variance_smoothed": smoothed,
+                }
+            )
+        )
+    columns = ["env", "algo", "episode", "n_runs", "variance", "variance_smoothed"]
+    return pd.concat(frames, ignore_index=True)[columns] if frames else pd.DataFrame(columns=columns)
+
+
+def markdown_table(performance: pd.DataFrame) -> str:
+    """
+    The final-performance table as Markdown: IQM and mean with their 95% CIs.
+
+    :param performance: The output of :func:`final_performance`
+    """
+    lines = [
+        "| Environment | Algorithm | Runs | IQM [95% CI] | Mean [95% CI] |",
+        "|---|---|---:|---:|---:|",
+    ]
+    for row in performance.itertuples(index=False):
+        lines.append(
+            f"| {row.env} | {row.algo} | {row.n_runs} "
+            f"| {row.iqm:.1f} [{row.iqm_ci_low:.1f}, {row.iqm_ci_high:.1f}] "
+            f"| {row.mean:.1f} [{row.mean_ci_low:.1f}, {row.mean_ci_high:.1f}] |"
+        )
+    return "\n".join(lines) + "\n"

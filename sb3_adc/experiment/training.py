@@ -1,0 +1,277 @@
+"""
+Training runs in the RL-Zoo log layout, with periodic evaluation, checkpoints, resume and a final evaluation.
+
+:func:`train` starts a run, :func:`resume` continues one from its last checkpoint (model, replay buffer,
+``VecNormalize`` statistics, timestep count and exploration-noise state, evaluations so far). A run
+interrupted with Ctrl-C saves a checkpoint first. See :mod:`sb3_adc.experiment.layout` for the files.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass, replace
+from typing import Any
+
+import yaml
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
+from tqdm import TqdmExperimentalWarning
+
+from sb3_adc.config import ExperimentConfig, HyperparamsError, load_hyperparams, resolve_entry
+from sb3_adc.experiment.callbacks import CheckpointSaver, EvaluationHistory, PeriodicEvalCallback
+from sb3_adc.experiment.envs import make_vec_env, wrap_vec_env
+from sb3_adc.experiment.evaluation import FinalEvaluation, evaluate_final
+from sb3_adc.experiment.layout import Checkpoint, RunLayout, latest_run_dir, new_run_dir
+from sb3_adc.experiment.monitor_files import truncate_monitor
+from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings
+
+
+@dataclass
+class TrainResult:
+    """
+    The outcome of a finished run.
+
+    :param run_dir: The run's folder
+    :param model_path: The final model
+    :param final_evaluation: The final evaluation
+    :param resumed_from: Timestep of the checkpoint this session started from (``None``: started from scratch;
+        equal to the budget when the run had already finished)
+    """
+
+    run_dir: str
+    model_path: str
+    final_evaluation: FinalEvaluation
+    resumed_from: int | None = None
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """
+    Training was interrupted (Ctrl-C); a checkpoint was saved first.
+
+    :param run_dir: The run's folder (pass it to :func:`resume`)
+    :param timesteps: The timestep of the checkpoint
+    """
+
+    def __init__(self, run_dir: str, timesteps: int):
+        super().__init__(f"training interrupted at timestep {timesteps}; checkpoint saved in {run_dir}")
+        self.run_dir = run_dir
+        self.timesteps = timesteps
+
+
+def train(settings: TrainSettings) -> TrainResult:
+    """
+    Train ``settings.algo`` on ``settings.env_id`` in a new run folder.
+
+    :param settings: What to train and how to log it
+    :raises HyperparamsError: for invalid hyperparameters (before anything is written)
+    :raises RunInterrupted: on Ctrl-C, after saving a checkpoint
+    """
+    config = load_hyperparams(settings.algo, settings.env_id, settings.conf_file, settings.overrides, settings.n_timesteps)
+    if settings.env_kwargs:
+        config.env_kwargs.update(settings.env_kwargs)
+        config.saved["env_kwargs"] = dict(config.env_kwargs)
+    run_dir = settings.run_dir or new_run_dir(settings.log_folder, settings.algo, settings.env_id)
+    layout = RunLayout(run_dir, settings.env_id)
+    if os.path.exists(layout.params_dir):
+        raise FileExistsError(f"{run_dir} already holds a run; continue it with resume (sb3-adc train --resume {run_dir}).")
+    os.makedirs(layout.params_dir)
+    with open(layout.config, "w", encoding="utf-8") as stream:
+        yaml.safe_dump(config.saved, stream, sort_keys=True)
+    replace(settings, run_dir=run_dir).save(layout.args)
+    print(
+        f"Training {settings.algo} on {settings.env_id} (seed {settings.seed}, {config.n_timesteps} timesteps, "
+        f"hyperparameters from {config.source}) in {run_dir}"
+    )
+    return _run(layout, settings, config, checkpoint=None)
+
+
+def resume(
+    run_dir: str, n_timesteps: int | None = None, progress_bar: bool | None = None, verbose: int | None = None
+) -> TrainResult:
+    """
+    Continue a run from its latest checkpoint (or return its result if it has finished).
+
+    The settings and hyperparameters are those saved with the run (``args.yml``, ``config.yml``). Episodes and
+    evaluations recorded after the checkpoint are dropped (that work is redone), the rest is kept. A run
+    without checkpoint starts again from scratch in the same folder.
+
+    :param run_dir: The run's folder
+    :param n_timesteps: A new budget (for instance to train a finished run further); not below the checkpoint
+    :param progress_bar: Show a progress bar (``None``: as saved)
+    :param verbose: SB3 verbosity (``None``: as saved)
+    :raises FileNotFoundError: if ``run_dir`` holds no run
+    :raises RunInterrupted: on Ctrl-C, after saving a checkpoint
+    """
+    settings_files = (
+        [os.path.join(run_dir, name, "args.yml") for name in sorted(os.listdir(run_dir))] if os.path.isdir(run_dir) else []
+    )
+    settings_files = [path for path in settings_files if os.path.isfile(path)]
+    if not settings_files:
+        raise FileNotFoundError(f"{run_dir} holds no sb3-adc run (no */args.yml); start one with sb3-adc train.")
+    settings = TrainSettings.load(settings_files[0])
+    settings = replace(
+        settings,
+        run_dir=run_dir,
+        progress_bar=settings.progress_bar if progress_bar is None else progress_bar,
+        verbose=settings.verbose if verbose is None else verbose,
+    )
+    layout = RunLayout(run_dir, settings.env_id)
+    with open(layout.config, encoding="utf-8") as stream:
+        saved = yaml.safe_load(stream)
+    config = resolve_entry(settings.algo, settings.env_id, saved, layout.config)
+    checkpoint = _latest_checkpoint(layout)
+    if n_timesteps is not None and n_timesteps != config.n_timesteps:
+        reached = checkpoint.timesteps if checkpoint is not None else 0
+        if n_timesteps < reached:
+            raise HyperparamsError(
+                "command line",
+                "n_timesteps",
+                f"the run has a checkpoint at timestep {reached}: the budget cannot be {n_timesteps}",
+            )
+        config.n_timesteps = n_timesteps
+        config.saved["n_timesteps"] = n_timesteps
+        with open(layout.config, "w", encoding="utf-8") as stream:
+            yaml.safe_dump(config.saved, stream, sort_keys=True)
+    if layout.is_finished():
+        finished = FinalEvaluation.load(layout.final_evaluation)
+        if finished.timesteps >= config.n_timesteps:
+            print(f"{run_dir} has finished: {finished.summary()}")
+            return TrainResult(run_dir, layout.final_model, finished, resumed_from=finished.timesteps)
+        os.remove(layout.final_evaluation)
+    return _run(layout, settings, config, checkpoint=checkpoint)
+
+
+def find_run(log_folder: str, algo: str, env_id: str) -> str:
+    """
+    The latest run of ``algo`` on ``env_id`` (the one ``sb3-adc train --resume`` continues).
+
+    :param log_folder: The log folder
+    :param algo: The algorithm's name
+    :param env_id: The environment id
+    :raises FileNotFoundError: if there is none
+    """
+    run_dir = latest_run_dir(log_folder, algo, env_id)
+    if run_dir is None:
+        raise FileNotFoundError(f"no run of {algo} on {env_id} in {os.path.join(log_folder, algo)} to resume.")
+    return run_dir
+
+
+def _latest_checkpoint(layout: RunLayout) -> Checkpoint | None:
+    for checkpoint in reversed(layout.checkpoints()):
+        if os.path.isfile(checkpoint.model):
+            return checkpoint
+    return None
+
+
+def _run(layout: RunLayout, settings: TrainSettings, config: ExperimentConfig, checkpoint: Checkpoint | None) -> TrainResult:
+    start = checkpoint.timesteps if checkpoint is not None else 0
+    _restore_records(layout, config, start)
+    train_env = make_vec_env(
+        config,
+        config.n_envs,
+        settings.seed,
+        monitor_files=[layout.monitor_file(rank) for rank in range(config.n_envs)],
+        steps_offset=start // config.n_envs,
+        append_monitor=checkpoint is not None,
+        vec_env=settings.vec_env,
+    )
+    statistics = checkpoint.vecnormalize if checkpoint is not None and os.path.isfile(checkpoint.vecnormalize) else None
+    train_env = wrap_vec_env(config, train_env, training=True, statistics=statistics)
+    model = _load_or_build(settings, config, train_env, checkpoint)
+    eval_env = _evaluation_env(config, settings, settings.n_eval_envs)
+
+    saver = CheckpointSaver(layout, max(settings.checkpoint_interval(config.n_timesteps), 1), settings.keep_checkpoints)
+    callbacks: list[BaseCallback] = []
+    eval_every = settings.evaluation_interval(config.n_timesteps)
+    if eval_every > 0:
+        history = EvaluationHistory.load(layout.evaluations)
+        callbacks.append(
+            PeriodicEvalCallback(eval_env, eval_every, history, settings.eval_episodes, layout.run_dir, settings.verbose)
+        )
+    if settings.checkpoint_interval(config.n_timesteps) > 0:
+        callbacks.append(saver)
+    callbacks.extend(config.make_callbacks())
+
+    if checkpoint is not None:
+        print(f"Resuming {layout.run_dir} from timestep {start} of {config.n_timesteps}")
+    try:
+        with warnings.catch_warnings():
+            # SB3's progress bar uses tqdm's rich front-end, which warns that it is experimental.
+            warnings.filterwarnings("ignore", category=TqdmExperimentalWarning)
+            model.learn(
+                max(config.n_timesteps - model.num_timesteps, 0),
+                callback=callbacks,
+                reset_num_timesteps=checkpoint is None,
+                progress_bar=settings.progress_bar,
+            )
+    except KeyboardInterrupt:
+        if saver.model is None:
+            saver.init_callback(model)
+        saved = saver.save()
+        print(f"\nInterrupted: checkpoint at timestep {saved.timesteps} saved.")
+        print(f"Continue with: sb3-adc train --resume {layout.run_dir}")
+        raise RunInterrupted(layout.run_dir, saved.timesteps) from None
+    finally:
+        eval_env.close()
+
+    if settings.checkpoint_interval(config.n_timesteps) > 0:
+        latest = _latest_checkpoint(layout)
+        if latest is None or latest.timesteps != model.num_timesteps:
+            # The replay buffer at the end, for training the run further (resume with a larger budget).
+            saver.save()
+    model.save(layout.final_model)
+    vec_normalize = model.get_vec_normalize_env()
+    if vec_normalize is not None:
+        vec_normalize.save(layout.vecnormalize)
+    final_env = _evaluation_env(config, settings, 1)
+    if vec_normalize is not None:
+        sync_envs_normalization(train_env, final_env)
+    try:
+        evaluation = evaluate_final(
+            model, final_env, settings.final_eval_episodes, settings.algo, settings.env_id, settings.seed
+        )
+    finally:
+        final_env.close()
+        train_env.close()
+    evaluation.save(layout.final_evaluation)
+    print(evaluation.summary())
+    return TrainResult(
+        layout.run_dir, layout.final_model, evaluation, resumed_from=checkpoint.timesteps if checkpoint else None
+    )
+
+
+def _restore_records(layout: RunLayout, config: ExperimentConfig, start: int) -> None:
+    """Keep the evaluations and episodes up to ``start`` (the checkpoint); from scratch, remove them all."""
+    if start == 0:
+        for path in [layout.evaluations, layout.best_model, *layout.monitor_files()]:
+            if os.path.exists(path):
+                os.remove(path)
+        return
+    EvaluationHistory.load(layout.evaluations).until(start).save(layout.evaluations)
+    for path in layout.monitor_files():
+        truncate_monitor(path, start // config.n_envs)
+
+
+def _load_or_build(
+    settings: TrainSettings, config: ExperimentConfig, env: VecEnv, checkpoint: Checkpoint | None
+) -> BaseAlgorithm:
+    algorithm_class: type[Any] = config.algorithm_class
+    if checkpoint is None:
+        kwargs = dict(config.model_kwargs)
+        if config.noise is not None:
+            kwargs["action_noise"] = config.make_action_noise(env.action_space)
+        return algorithm_class(env=env, seed=settings.seed, verbose=settings.verbose, device=settings.device, **kwargs)
+    model = algorithm_class.load(checkpoint.model, env=env, device=settings.device)
+    model.verbose = settings.verbose
+    if os.path.isfile(checkpoint.replay_buffer) and hasattr(model, "load_replay_buffer"):
+        model.load_replay_buffer(checkpoint.replay_buffer)
+    # A new random stream: the resumed part does not replay the first part's draws.
+    model.set_random_seed(settings.seed + checkpoint.timesteps)
+    return model
+
+
+def _evaluation_env(config: ExperimentConfig, settings: TrainSettings, n_envs: int) -> VecEnv:
+    env = make_vec_env(config, n_envs, settings.seed + EVAL_SEED_OFFSET)
+    return wrap_vec_env(config, env, training=False)

@@ -1,0 +1,141 @@
+"""``python -m sb3_adc.zoo``: the RL Zoo's own train/enjoy with ADC registered and safe hyperparameters."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+import yaml
+
+pytest.importorskip("rl_zoo3")
+
+from sb3_adc import ADC
+from sb3_adc.baselines import DuelingDQNPolicy, SplitRateDDPG
+from sb3_adc.common.noise import EpsilonGaussianNoise
+from sb3_adc.config import HyperparamsError
+from sb3_adc.zoo import main
+
+CONF = """
+    Pendulum-v1:
+      n_timesteps: 300
+      policy: MlpPolicy
+      learning_starts: 100
+      batch_size: 16
+      noise_type: epsilon-normal
+      noise_std: 0.1
+      n_intervals: 10
+      policy_kwargs: "dict(net_arch=[8], value_net_arch=[4])"
+      env_kwargs: {max_episode_steps: 50}
+"""
+DQN_CONF = """
+    Pendulum-v1:
+      n_timesteps: 200
+      policy: sb3_adc.baselines.DuelingDQNPolicy
+      env_wrapper:
+        - sb3_adc_envs.wrappers.DiscretizedActions: {n_actions: 25}
+      learning_starts: 100
+      policy_kwargs: "dict(net_arch=[8], value_net_arch=[4], advantage_net_arch=[4])"
+      env_kwargs: {max_episode_steps: 50}
+"""
+
+
+def write_conf(folder, text, name="adc.yml"):
+    path = folder / name
+    path.write_text(textwrap.dedent(text))
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def zoo_run(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("zoo")
+    conf = write_conf(folder, CONF)
+    logs = folder / "logs"
+    args = ["train", "--algo", "adc", "--env", "Pendulum-v1", "-conf", conf, "-f", str(logs), "--seed", "0"]
+    assert main([*args, "--eval-freq", "100", "--eval-episodes", "1", "--num-threads", "1", "-params", "batch_size:8"]) == 0
+    return logs / "adc" / "Pendulum-v1_1"
+
+
+def test_zoo_train_runs_adc_with_our_hyperparameters(zoo_run):
+    for name in ("Pendulum-v1.zip", "best_model.zip", "evaluations.npz", "0.monitor.csv"):
+        assert (zoo_run / name).is_file(), name
+    model = ADC.load(zoo_run / "Pendulum-v1.zip")
+    assert model.num_timesteps == 300
+    assert model.policy.n_intervals == 10
+    assert model.batch_size == 8
+    assert isinstance(model.action_noise, EpsilonGaussianNoise)
+    assert model.action_noise.decay_steps == 150
+    # Plain YAML (the Zoo would write Python tags), with the resolved entry.
+    config = yaml.safe_load((zoo_run / "Pendulum-v1" / "config.yml").read_text())
+    assert config["policy_kwargs"] == "dict(net_arch=[8], value_net_arch=[4])"
+    assert config["batch_size"] == 8
+    args = yaml.safe_load((zoo_run / "Pendulum-v1" / "args.yml").read_text())
+    assert (args["algo"], args["env"]) == ("adc", "Pendulum-v1")
+
+
+def test_zoo_enjoy_plays_the_run(zoo_run, capsys):
+    logs = zoo_run.parent.parent
+    assert main(["enjoy", "--algo", "adc", "--env", "Pendulum-v1", "-f", str(logs), "--no-render", "-n", "110"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("Episode Reward:") == 2
+    assert "Episode Length 50" in out
+
+
+def test_zoo_enjoy_never_executes_a_tampered_config(zoo_run, tmp_path):
+    tampered = tmp_path / "logs" / "adc" / "Pendulum-v1_1"
+    tampered.mkdir(parents=True)
+    for name in ("Pendulum-v1.zip",):
+        (tampered / name).write_bytes((zoo_run / name).read_bytes())
+    (tampered / "Pendulum-v1").mkdir()
+    (tampered / "Pendulum-v1" / "args.yml").write_text((zoo_run / "Pendulum-v1" / "args.yml").read_text())
+    marker = tmp_path / "pwned"
+    (tampered / "Pendulum-v1" / "config.yml").write_text(f"n_timesteps: !!python/object/apply:os.system ['touch {marker}']\n")
+    with pytest.raises(yaml.YAMLError):
+        main(["enjoy", "--algo", "adc", "--env", "Pendulum-v1", "-f", str(tmp_path / "logs"), "--no-render", "-n", "10"])
+    assert not marker.exists()
+
+
+def test_zoo_params_are_parsed_not_evaluated(tmp_path):
+    conf = write_conf(tmp_path, CONF)
+    marker = tmp_path / "pwned"
+    attack = f"policy_kwargs:dict(net_arch=__import__('os').system('touch {marker}'))"
+    with pytest.raises(HyperparamsError, match="function calls are not allowed"):
+        main(["train", "--algo", "adc", "--env", "Pendulum-v1", "-conf", conf, "-f", str(tmp_path), "-params", attack])
+    assert not marker.exists()
+
+
+def test_zoo_dqn_with_the_dueling_policy_and_discretized_actions(tmp_path):
+    conf = write_conf(tmp_path, DQN_CONF, "dqn.yml")
+    args = ["train", "--algo", "dqn", "--env", "Pendulum-v1", "-conf", conf, "-f", str(tmp_path / "logs"), "--eval-freq", "-1"]
+    assert main(args) == 0
+    from stable_baselines3 import DQN
+
+    model = DQN.load(tmp_path / "logs" / "dqn" / "Pendulum-v1_1" / "Pendulum-v1.zip")
+    assert isinstance(model.policy, DuelingDQNPolicy)
+    assert model.action_space.n == 25
+
+
+def test_zoo_algos_table_and_usage(capsys):
+    from rl_zoo3.utils import ALGOS
+
+    from sb3_adc.zoo import register_algorithms
+
+    register_algorithms()
+    assert ALGOS["adc"] is ADC
+    assert ALGOS["ddpg"] is SplitRateDDPG
+    assert main([]) == 2
+    assert "usage: python -m sb3_adc.zoo {train,enjoy}" in capsys.readouterr().err
+
+
+def test_python_m_sb3_adc_zoo_help_from_another_directory(tmp_path):
+    result = subprocess.run(
+        [sys.executable, "-m", "sb3_adc.zoo", "train", "--help"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        check=False,
+        env={**os.environ, "PYTHONWARNINGS": "ignore"},
+    )
+    assert result.returncode == 0
+    assert "{" in result.stdout
+    assert "adc" in result.stdout.split("--algo")[1].split("}")[0]
