@@ -86,7 +86,7 @@ class DuelingIntervalNetwork(nn.Module):
         :return: value ``(batch, 1)`` and advantages ``(batch, action_dim, n_intervals)``
         """
         value, advantages = head_outputs.split(self.split_sizes, dim=1)
-        # Streams without hidden layers are empty: skip the call (this runs three times per gradient step).
+        # Streams without hidden layers are empty: skip the call.
         if self.value_stream:
             value = self.value_stream(value)
         if self.advantage_stream:

@@ -1,0 +1,28 @@
+"""The README's two set-up commands stay true: CI runs the test command verbatim."""
+
+import re
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def setup_commands():
+    readme = (ROOT / "README.md").read_text()
+    section = readme.split("## Set-up", 1)[1].split("\n## ", 1)[0]
+    return re.findall(r"```bash\n(.+?)\n```", section, flags=re.DOTALL)
+
+
+def test_readme_has_exactly_two_setup_commands():
+    commands = setup_commands()
+    assert len(commands) == 2
+    main, tests = commands
+    assert "sb3-adc train --algo adc --env sb3_adc/NoisyPendulum-v1" in main
+    assert "constraints.txt" in main
+    assert "pytest" in tests
+    assert "constraints.txt" in tests
+
+
+def test_ci_runs_the_readme_test_command():
+    _, tests = setup_commands()
+    ci_lines = (ROOT / ".ci" / "run").read_text().splitlines()
+    assert tests.strip() in [line.strip() for line in ci_lines]
