@@ -27,6 +27,9 @@ class AllowList:
         self.kind = kind
         self._targets: dict[str, str | object] = dict(targets)
 
+    def __repr__(self) -> str:
+        return f"AllowList({self.kind!r}, {len(self._targets)} names)"
+
     def __contains__(self, name: object) -> bool:
         return name in self._targets
 

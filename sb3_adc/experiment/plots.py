@@ -23,6 +23,9 @@ from sb3_adc.experiment.statistics import (
     markdown_table,
 )
 
+#: Size of one panel (inches).
+PANEL_WIDTH, PANEL_HEIGHT = 6.4, 4.0
+
 
 @dataclass
 class PlotOutputs:
@@ -46,7 +49,7 @@ def _colors(algos: list[str]) -> dict[str, tuple[float, float, float, float]]:
 def _grid(n_panels: int, rows_per_panel: int = 1) -> tuple[Figure, list[Axes]]:
     columns = min(n_panels, 3)
     rows = math.ceil(n_panels / columns) * rows_per_panel
-    figure = Figure(figsize=(5.0 * columns, 3.6 * rows), layout="constrained")
+    figure = Figure(figsize=(PANEL_WIDTH * columns, PANEL_HEIGHT * rows), layout="constrained")
     axes = figure.subplots(rows, columns, squeeze=False)
     return figure, list(axes.flat)
 
@@ -73,7 +76,7 @@ def plot_learning_curves(curves: pd.DataFrame, path: str, title: str = "") -> st
         ax.legend(fontsize="small")
     for ax in axes[len(envs) :]:
         ax.set_visible(False)
-    figure.suptitle(title or "Learning curves: mean return across runs, 95% stratified-bootstrap CI")
+    figure.suptitle(title or "Mean evaluation return across runs (95% bootstrap CI)", fontsize="medium")
     figure.savefig(path, dpi=120)
     return path
 
@@ -93,7 +96,7 @@ def plot_reward_variance(curves: pd.DataFrame, episodes: pd.DataFrame | None, pa
     colors = _colors(list(curves["algo"].unique()))
     per_episode = episode_variance(episodes, window) if episodes is not None and not episodes.empty else None
     rows = 2 if per_episode is not None and not per_episode.empty else 1
-    figure = Figure(figsize=(5.0 * len(envs), 3.6 * rows), layout="constrained")
+    figure = Figure(figsize=(PANEL_WIDTH * len(envs), PANEL_HEIGHT * rows), layout="constrained")
     axes = figure.subplots(rows, len(envs), squeeze=False)
     for column, env in enumerate(envs):
         ax = axes[0, column]
@@ -112,11 +115,13 @@ def plot_reward_variance(curves: pd.DataFrame, episodes: pd.DataFrame | None, pa
             for algo, group in per_episode[per_episode["env"] == env].groupby("algo", sort=True):
                 ax.plot(group["episode"], group["variance_smoothed"], color=colors.get(str(algo), "k"), label=str(algo))
             ax.set(
-                title=f"{env}: training episodes ({window}-episode average)", xlabel="episode", ylabel="variance across runs"
+                title=f"{env}: training episodes",
+                xlabel=f"episode ({window}-episode moving average)",
+                ylabel="variance across runs",
             )
             ax.grid(alpha=0.3)
             ax.legend(fontsize="small")
-    figure.suptitle("Across-run variance of the rewards (ADC paper, Figures 5 and 8)")
+    figure.suptitle("Across-run variance of the rewards (as the ADC paper's Figures 5 and 8)", fontsize="medium")
     figure.savefig(path, dpi=120)
     return path
 
@@ -152,7 +157,7 @@ def plot_final_performance(performance: pd.DataFrame, path: str) -> str:
         ax.legend(fontsize="small")
     for ax in axes[len(envs) :]:
         ax.set_visible(False)
-    figure.suptitle("Final performance: IQM (o) and mean (s), 95% stratified-bootstrap CIs")
+    figure.suptitle("Final return: IQM (o) and mean (s), 95% stratified-bootstrap CIs", fontsize="medium")
     figure.savefig(path, dpi=120)
     return path
 

@@ -19,7 +19,6 @@ from sb3_adc.cli import build_parser
 from sb3_adc.config import CALLBACKS
 from sb3_adc.experiment import FinalEvaluation
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def evaluations(run_dir):
@@ -229,3 +228,30 @@ def test_resume_after_the_process_is_killed(tmp_path, tiny_conf):
     assert totals == sorted(totals)
     assert len(totals) == len(set(totals))
     assert result.final_evaluation.timesteps == checkpoint + 200
+
+
+def test_shipped_hyperparameters_from_any_working_directory(cli, tmp_path, monkeypatch):
+    """Without -conf, the YAML shipped inside the package is used, wherever the command runs."""
+    monkeypatch.chdir(tmp_path)
+    args = ["--algo", "adc", "--env", "sb3_adc/NoisyPendulum-v1", "-n", 150, "--seed", 0, "--eval-freq", -1]
+    status, out, _ = cli("train", *args, "--final-eval-episodes", 1)
+    assert status == 0
+    assert "adc.yml [sb3_adc/NoisyPendulum-v1]" in out
+    run_dir = tmp_path / "logs" / "adc" / "sb3_adc-NoisyPendulum-v1_1"
+    assert (run_dir / "sb3_adc-NoisyPendulum-v1.zip").is_file()
+    config = yaml.safe_load((run_dir / "sb3_adc-NoisyPendulum-v1" / "config.yml").read_text())
+    assert config["n_timesteps"] == 150
+    assert "Final evaluation of adc on sb3_adc/NoisyPendulum-v1 (seed 0, 150 steps)" in out
+    assert not (run_dir / "evaluations.npz").exists()
+
+
+def test_console_script_and_python_m(tmp_path):
+    version = subprocess.run(
+        [sys.executable, "-m", "sb3_adc", "--version"], cwd=tmp_path, capture_output=True, text=True, check=True
+    )
+    assert version.stdout.startswith("sb3-adc ")
+    script = os.path.join(os.path.dirname(sys.executable), "sb3-adc")
+    if not os.path.isfile(script):
+        pytest.skip("the sb3-adc console script is not installed next to this Python")
+    help_text = subprocess.run([script, "benchmark", "--help"], cwd=tmp_path, capture_output=True, text=True, check=True)
+    assert "--backend {local,ray}" in help_text.stdout
