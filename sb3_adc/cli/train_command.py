@@ -48,7 +48,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--env", help="environment id, e.g. Pendulum-v1 or sb3_adc/NoisyPendulum-v1")
     parser.add_argument("--seed", type=int, default=-1, help="random seed (default: -1, a random seed)")
     parser.add_argument("-n", "--n-timesteps", type=int, default=None, help="training budget, replacing n_timesteps")
-    parser.add_argument("-conf", "--conf-file", default=None, help="hyperparameter file (default: the shipped {algo}.yml)")
+    parser.add_argument(
+        "-conf",
+        "--conf-file",
+        default=None,
+        help="hyperparameter file, or the name of a shipped one (default: the shipped {algo}.yml)",
+    )
     parser.add_argument("-f", "--log-folder", default="logs", help="log folder (default: logs)")
     parser.add_argument(
         "-params",

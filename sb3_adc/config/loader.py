@@ -64,6 +64,29 @@ def packaged_hyperparams_file(algo: str) -> str:
     return str(resources.files(HYPERPARAMS_PACKAGE).joinpath(f"{algo}.yml"))
 
 
+def shipped_hyperparams_files() -> list[str]:
+    """The names (without ``.yml``) of the hyperparameter files shipped with the package."""
+    folder = resources.files(HYPERPARAMS_PACKAGE)
+    return sorted(item.name[: -len(".yml")] for item in folder.iterdir() if item.name.endswith(".yml"))
+
+
+def find_hyperparams_file(conf_file: str) -> str:
+    """
+    The path of a hyperparameter file given as a path, or as the name of a shipped file (``adc``, or another
+    ``*.yml`` of :data:`HYPERPARAMS_PACKAGE`, without the extension).
+
+    :param conf_file: A path, or the name of a shipped file
+    :raises HyperparamsError: if it is neither
+    """
+    if os.path.isfile(conf_file):
+        return conf_file
+    if os.sep not in conf_file and not conf_file.endswith((".yml", ".yaml")) and conf_file in shipped_hyperparams_files():
+        return packaged_hyperparams_file(conf_file)
+    raise HyperparamsError(
+        conf_file, None, f"hyperparameter file not found (nor a shipped file: {', '.join(shipped_hyperparams_files())})"
+    )
+
+
 def read_hyperparams_file(path: str) -> dict[str, Any]:
     """
     Read a hyperparameter file: a YAML mapping of entry names (environment ids, ``default``) to mappings.
@@ -165,13 +188,14 @@ def load_hyperparams(
 
     :param algo: The algorithm's name (``adc``, ``ddpg``, ``td3``, ``sac``, ``dqn``, ``vanilla_ac``)
     :param env_id: The environment id
-    :param conf_file: A hyperparameter file; ``None`` uses the shipped ``{algo}.yml``
+    :param conf_file: A hyperparameter file, or the name of a shipped one (see :func:`find_hyperparams_file`);
+        ``None`` uses the shipped ``{algo}.yml``
     :param overrides: Values replacing those of the entry (see :func:`parse_overrides`)
     :param n_timesteps: Training budget replacing the entry's ``n_timesteps``
     :raises HyperparamsError: for any invalid file, entry, key or value
     """
     get_algorithm(algo)
-    path = conf_file if conf_file is not None else packaged_hyperparams_file(algo)
+    path = find_hyperparams_file(conf_file) if conf_file is not None else packaged_hyperparams_file(algo)
     entry, source = select_entry(read_hyperparams_file(path), env_id, path)
     if overrides:
         entry = {**entry, **overrides}

@@ -22,7 +22,7 @@ class TrainSettings:
     :param algo: The algorithm's name (``adc``, ``ddpg``, ``td3``, ``sac``, ``dqn``, ``vanilla_ac``)
     :param env_id: The environment id
     :param seed: Seed of the model, the environments and the noise
-    :param conf_file: Hyperparameter file; ``None`` uses the shipped ``{algo}.yml``
+    :param conf_file: Hyperparameter file, or the name of a shipped one; ``None`` uses the shipped ``{algo}.yml``
     :param overrides: ``key: value`` replacing the entry's values (``-params``)
     :param env_kwargs: Keyword arguments of ``gym.make`` replacing the entry's ``env_kwargs`` keys
     :param n_timesteps: Training budget replacing the entry's ``n_timesteps``

@@ -20,7 +20,6 @@ from sb3_adc.config import CALLBACKS
 from sb3_adc.experiment import FinalEvaluation
 
 
-
 def evaluations(run_dir):
     with np.load(os.path.join(run_dir, "evaluations.npz")) as data:
         return list(data["timesteps"]), data["results"]

@@ -243,9 +243,13 @@ def test_bad_files(tmp_path, text, problem):
     assert path in str(info.value)
 
 
-def test_missing_file():
-    with pytest.raises(HyperparamsError, match="hyperparameter file not found"):
+def test_missing_file_and_shipped_file_names():
+    with pytest.raises(HyperparamsError, match=r"hyperparameter file not found \(nor a shipped file: adc, ddpg, dqn"):
         load_hyperparams("adc", "Pendulum-v1", conf_file="/nonexistent/adc.yml")
+    # A shipped file by name: here ddpg.yml's entry, trained with ADC.
+    config = load_hyperparams("adc", "Pendulum-v1", conf_file="ddpg")
+    assert config.source.endswith("ddpg.yml [Pendulum-v1]")
+    assert "n_intervals" not in config.model_kwargs["policy_kwargs"]
 
 
 def test_policy_kwargs_attack_in_a_file_names_file_entry_key_and_expression(tmp_path):
