@@ -14,6 +14,7 @@ import pandas as pd
 from matplotlib import colormaps
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from sb3_adc.experiment.statistics import (
     episode_variance,
@@ -23,6 +24,11 @@ from sb3_adc.experiment.statistics import (
     markdown_table,
 )
 
+#: Legend of the final-performance figure: the marker of each statistic.
+_METRIC_MARKERS = [
+    Line2D([], [], marker="o", color="black", linestyle="none", label="IQM"),
+    Line2D([], [], marker="s", color="black", linestyle="none", label="mean"),
+]
 #: Size of one panel (inches).
 PANEL_WIDTH, PANEL_HEIGHT = 6.4, 4.0
 
@@ -149,12 +155,11 @@ def plot_final_performance(performance: pd.DataFrame, path: str) -> str:
                     fmt=marker,
                     color=colors[row.algo],
                     capsize=3,
-                    label=metric.upper() if position == 0 else None,
                 )
         ax.set_yticks(positions, list(table["algo"]))
         ax.set(title=env, xlabel="final return (95% CI)")
         ax.grid(alpha=0.3, axis="x")
-        ax.legend(fontsize="small")
+        ax.legend(handles=_METRIC_MARKERS, fontsize="small")
     for ax in axes[len(envs) :]:
         ax.set_visible(False)
     figure.suptitle("Final return: IQM (o) and mean (s), 95% stratified-bootstrap CIs", fontsize="medium")
