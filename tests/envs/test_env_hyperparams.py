@@ -1,0 +1,44 @@
+"""The hyperparameter entries of the environments load, build their models, and keep the paper's network."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium as gym
+import pytest
+
+from sb3_adc.config.loader import load_hyperparams
+
+ROOT = Path(__file__).resolve().parents[2]
+ENV_IDS = ["sb3_adc/LidarObstacleCourse-v0", "sb3_adc/LidarObstacleCourseNoisy-v0", "sb3_adc/HighwayObstacle-v0"]
+
+
+@pytest.mark.parametrize("algo", ["adc", "ddpg", "td3"])
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_entries_load_and_build_a_model(algo, env_id):
+    config = load_hyperparams(algo, env_id)
+    assert config.source.endswith(f"[{env_id}]")  # the environment's own entry, not `default`
+    kwargs = dict(config.model_kwargs)
+    assert kwargs["policy_kwargs"]["net_arch"]["pi"] == [100, 20]  # the paper's actor
+    assert kwargs["gamma"] == 0.9
+    assert kwargs["tau"] == 0.01
+    env = gym.make(env_id, **config.env_kwargs)
+    policy = kwargs.pop("policy")
+    model = config.algorithm_class(policy, env, action_noise=config.make_action_noise(env.action_space), seed=0, **kwargs)
+    model.learn(50)
+    env.close()
+
+
+def test_adc_entry_uses_the_paper_dueling_critic():
+    kwargs = load_hyperparams("adc", "sb3_adc/LidarObstacleCourse-v0").model_kwargs
+    assert kwargs["policy_kwargs"] == {"net_arch": {"pi": [100, 20], "qf": [100]}, "value_net_arch": [20], "n_intervals": 100}
+    assert kwargs["critic_learning_rate"] == 2 * kwargs["learning_rate"]
+
+
+def test_table_2_configuration_is_the_papers():
+    conf_file = str(ROOT / "benchmarks" / "configs" / "lidar_table2_adc.yml")
+    kwargs = load_hyperparams("adc", "sb3_adc/LidarObstacleCourse-v0", conf_file=conf_file).model_kwargs
+    table_2 = {"gamma": 0.9, "buffer_size": 5000, "batch_size": 16, "tau": 0.01}
+    table_2.update(learning_rate=1e-4, critic_learning_rate=2e-4)
+    assert {key: kwargs[key] for key in table_2} == table_2
+    assert kwargs["policy_kwargs"] == {"net_arch": {"pi": [100, 20], "qf": [100]}, "value_net_arch": [20], "n_intervals": 100}
