@@ -9,7 +9,7 @@ Each grid is ``sb3-adc benchmark`` (resumable: re-running the script skips finis
 ``sb3-adc plot``: learning curves with 95% stratified-bootstrap CIs, the across-run reward variance (the
 paper's Figures 5 and 8) and a final-performance table (IQM and mean with 95% CIs). The runs go to
 ``benchmarks/runs/paper_pendulum/`` (not committed); the tables and figures to
-``benchmarks/results/paper_pendulum/{grid}/``, the figures also to ``docs/_static/benchmarks/``.
+``benchmarks/results/paper_pendulum/{grid}/``, the figures to ``docs/_static/benchmarks/paper_{grid}_*.png``.
 
 Usage::
 
@@ -85,14 +85,17 @@ def run_grid(name: str, seeds: int, workers: int, n_timesteps: int | None, reps:
         episodes=pd.read_csv(output / EPISODES_CSV),
         reps=reps,
     )
+    trained = sum(outcome.status != "skipped" for outcome in result.outcomes)
+    previous = json.loads((output / "metadata.json").read_text()) if (output / "metadata.json").is_file() else {}
     metadata = {
         "grid": name,
         "algos": algos,
         "envs": envs,
         "seeds": settings.seeds,
         "n_timesteps": n_timesteps or "each entry's n_timesteps",
-        "wall_time_s_this_invocation": round(elapsed, 1),
-        "runs_trained_this_invocation": sum(outcome.status != "skipped" for outcome in result.outcomes),
+        # Summed over the invocations that trained runs (a re-run that skips finished runs only re-plots).
+        "training_wall_time_s": round(previous.get("training_wall_time_s", 0.0) + (elapsed if trained else 0.0), 1),
+        "runs": len(result.outcomes),
         "workers": workers,
         "bootstrap_reps": reps,
         "sb3_adc": sb3_adc.__version__,
@@ -106,7 +109,8 @@ def run_grid(name: str, seeds: int, workers: int, n_timesteps: int | None, reps:
     if not quick:
         DOCS_STATIC.mkdir(parents=True, exist_ok=True)
         for figure in plots.figures:
-            shutil.copy(figure, DOCS_STATIC / f"paper_{name}_{Path(figure).name}")
+            # The figures are committed once, with the docs.
+            shutil.move(figure, DOCS_STATIC / f"paper_{name}_{Path(figure).name}")
     performance = pd.read_csv(output / "final_performance.csv")
     print(f"\n{name}: final return over 20 deterministic episodes per run ({len(settings.seeds)} seeds)")
     print((output / "final_performance.md").read_text())

@@ -114,6 +114,10 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         result = run_benchmark(settings, backend=args.backend, workers=args.workers, address=args.address, report=report)
+    except KeyboardInterrupt:
+        progress.close()
+        print("\nInterrupted: finished runs are kept, running ones saved a checkpoint. Re-run the same command to continue.")
+        return 130
     finally:
         progress.close()
     for name, path in result.tables.items():

@@ -271,11 +271,16 @@ def run_benchmark(
         outcomes_iterator = run_ray(specs, settings, address)
     else:
         raise ValueError(f"`backend` must be 'local' or 'ray', got {backend!r}.")
-    outcomes = []
-    for outcome in outcomes_iterator:
-        outcomes.append(outcome)
-        if report is not None:
-            report(outcome, len(outcomes), len(specs))
+    outcomes: list[RunOutcome] = []
+    try:
+        for outcome in outcomes_iterator:
+            outcomes.append(outcome)
+            if report is not None:
+                report(outcome, len(outcomes), len(specs))
+    except KeyboardInterrupt:
+        # Ctrl-C: the runs in progress saved a checkpoint; the tables keep the runs that finished.
+        write_tables(outcomes, settings.log_folder)
+        raise
     return BenchmarkResult(outcomes, write_tables(outcomes, settings.log_folder))
 
 

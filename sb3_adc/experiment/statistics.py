@@ -49,16 +49,23 @@ def _bootstrap(
     if scores.shape[0] < 2:
         point = func(scores)
         return point, np.stack([point, point])
-    with warnings.catch_warnings():
-        # rliable 1.2 seeds arch's bootstrap with `random_state`, which arch 7 deprecates.
-        warnings.filterwarnings("ignore", category=FutureWarning, module="arch")
-        points, intervals = rly.get_interval_estimates(
-            {"scores": scores},
-            func,
-            reps=reps,
-            confidence_interval_size=CONFIDENCE,
-            random_state=np.random.RandomState(seed),
-        )
+    # rliable 1.2 draws its resamples from NumPy's global generator (`random_state` only seeds arch's own):
+    # seed it for reproducible intervals, and give it back its state afterwards.
+    global_state = np.random.get_state()  # noqa: NPY002
+    np.random.seed(seed)  # noqa: NPY002
+    try:
+        with warnings.catch_warnings():
+            # rliable passes `random_state` to arch, which deprecates it.
+            warnings.filterwarnings("ignore", category=FutureWarning, module="arch")
+            points, intervals = rly.get_interval_estimates(
+                {"scores": scores},
+                func,
+                reps=reps,
+                confidence_interval_size=CONFIDENCE,
+                random_state=np.random.RandomState(seed),
+            )
+    finally:
+        np.random.set_state(global_state)  # noqa: NPY002
     return np.asarray(points["scores"]), np.asarray(intervals["scores"])
 
 

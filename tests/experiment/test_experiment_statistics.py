@@ -47,6 +47,18 @@ def test_final_performance_iqm_and_mean_with_cis():
     assert f"| Pendulum-v1 | adc | 6 | {table.iqm[0]:.1f} [" in markdown
 
 
+def test_intervals_are_reproducible_and_leave_numpy_alone():
+    final = synthetic_evaluations().query("timesteps == 400")
+    np.random.seed(123)
+    expected_draw = np.random.random()
+    np.random.seed(123)
+    first = final_performance(final, reps=300, seed=7)
+    assert np.random.random() == expected_draw
+    pd.testing.assert_frame_equal(first, final_performance(final, reps=300, seed=7))
+    other = final_performance(final, reps=300, seed=8)
+    assert not np.allclose(other["mean_ci_low"], first["mean_ci_low"])
+
+
 def test_learning_curves_mean_and_across_run_variance():
     evaluations = synthetic_evaluations()
     # A run missing an evaluation: that timestep is dropped for its (env, algo) only.
