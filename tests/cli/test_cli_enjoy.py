@@ -31,6 +31,7 @@ def test_enjoy_replays_the_final_evaluation(cli, trained_run):
 
 
 def test_enjoy_records_a_gif_and_a_video(cli, trained_run, tmp_path):
+    pytest.importorskip("imageio_ffmpeg", reason="videos need the `video` extra")
     run_dir = trained_run / "adc" / "Pendulum-v1_1"
     gif, video = tmp_path / "out" / "rollout.gif", tmp_path / "rollout.mp4"
     args = ["--run-dir", run_dir, "--model", "best", "-n", 2, "--gif", gif, "--video", video, "--fps", 10]
