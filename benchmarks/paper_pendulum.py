@@ -2,8 +2,11 @@
 The ADC paper's Pendulum comparisons, run with the sb3-adc tooling and its shipped hyperparameter files.
 
 - ``pendulum``: ADC, DDPG, the vanilla actor-critic and the dueling DQN over 25 actions on ``Pendulum-v1``
-  (the paper's Section 5.1.1, Table 1, Figures 4 and 5);
-- ``noisy_pendulum``: ADC and DDPG on ``sb3_adc/NoisyPendulum-v1`` (Section 5.2, Table 3, Figures 9 and 10).
+  with the paper's hyperparameters (``hyperparams/paper/``: Section 5.1.1, Table 1, Figures 4 and 5);
+- ``noisy_pendulum``: ADC and DDPG on ``sb3_adc/NoisyPendulum-v1`` with the paper's hyperparameters
+  (Section 5.2, Table 3, Figures 9 and 10);
+- ``tuned``: ADC and DDPG on both environments with the shipped defaults (``hyperparams/{adc,ddpg}.yml``),
+  which give both algorithms the same settings but the critic.
 
 Each grid is ``sb3-adc benchmark`` (resumable: re-running the script skips finished runs) followed by
 ``sb3-adc plot``: learning curves with 95% stratified-bootstrap CIs, the across-run reward variance (the
@@ -33,6 +36,7 @@ import stable_baselines3
 import torch as th
 
 import sb3_adc
+from sb3_adc.config import packaged_hyperparams_file
 from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CSV, BenchmarkSettings, RunOutcome, run_benchmark
 from sb3_adc.experiment.plots import plot_results
 
@@ -41,10 +45,14 @@ RUNS_DIR = ROOT / "runs" / "paper_pendulum"
 RESULTS_DIR = ROOT / "results" / "paper_pendulum"
 DOCS_STATIC = ROOT.parent / "docs" / "_static" / "benchmarks"
 
-#: Grid name -> (algorithms, environments).
-GRIDS: dict[str, tuple[list[str], list[str]]] = {
-    "pendulum": (["adc", "ddpg", "vanilla_ac", "dqn"], ["Pendulum-v1"]),
-    "noisy_pendulum": (["adc", "ddpg"], ["sb3_adc/NoisyPendulum-v1"]),
+#: The folder of the paper's hyperparameter files (``hyperparams/paper/{algo}.yml``).
+PAPER_CONF = os.path.dirname(packaged_hyperparams_file("paper/adc"))
+
+#: Grid name -> (algorithms, environments, folder of the ``{algo}.yml`` files, ``None`` for the shipped defaults).
+GRIDS: dict[str, tuple[list[str], list[str], str | None]] = {
+    "pendulum": (["adc", "ddpg", "vanilla_ac", "dqn"], ["Pendulum-v1"], PAPER_CONF),
+    "noisy_pendulum": (["adc", "ddpg"], ["sb3_adc/NoisyPendulum-v1"], PAPER_CONF),
+    "tuned": (["adc", "ddpg"], ["Pendulum-v1", "sb3_adc/NoisyPendulum-v1"], None),
 }
 
 
@@ -56,7 +64,7 @@ def report(outcome: RunOutcome, done: int, total: int) -> None:
 
 
 def run_grid(name: str, seeds: int, workers: int, n_timesteps: int | None, reps: int, quick: bool) -> pd.DataFrame:
-    algos, envs = GRIDS[name]
+    algos, envs, conf_folder = GRIDS[name]
     suffix = "_quick" if quick else ""
     settings = BenchmarkSettings(
         algos=algos,
@@ -64,6 +72,7 @@ def run_grid(name: str, seeds: int, workers: int, n_timesteps: int | None, reps:
         seeds=list(range(seeds)),
         log_folder=str(RUNS_DIR / f"{name}{suffix}"),
         n_timesteps=n_timesteps,
+        conf_folder=conf_folder,
         eval_episodes=5,
         final_eval_episodes=20,
         device="cpu",
@@ -91,6 +100,7 @@ def run_grid(name: str, seeds: int, workers: int, n_timesteps: int | None, reps:
         "grid": name,
         "algos": algos,
         "envs": envs,
+        "hyperparams": "shipped defaults" if conf_folder is None else "hyperparams/paper",
         "seeds": settings.seeds,
         "n_timesteps": n_timesteps or "each entry's n_timesteps",
         # Summed over the invocations that trained runs (a re-run that skips finished runs only re-plots).

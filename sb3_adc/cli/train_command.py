@@ -52,7 +52,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "-conf",
         "--conf-file",
         default=None,
-        help="hyperparameter file, or the name of a shipped one (default: the shipped {algo}.yml)",
+        help="hyperparameter file, or the name of a shipped one such as paper/adc, the paper's tables "
+        "(default: the shipped {algo}.yml)",
     )
     parser.add_argument("-f", "--log-folder", default="logs", help="log folder (default: logs)")
     parser.add_argument(

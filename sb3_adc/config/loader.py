@@ -32,6 +32,8 @@ from sb3_adc.config.schema import ADC_POLICY_KEYS, EPSILON_NOISE_KEYS, accepted_
 
 #: The package holding the shipped hyperparameter files.
 HYPERPARAMS_PACKAGE = "sb3_adc.hyperparams"
+#: Sub-folder of HYPERPARAMS_PACKAGE with the ADC paper's hyperparameter tables (`-conf paper/adc`).
+PAPER_FOLDER = "paper"
 #: The entry merged under every environment's entry.
 DEFAULT_ENTRY = "default"
 #: Keys whose string values (in ``policy_kwargs`` and similar mappings) name a class of the allow-list.
@@ -55,32 +57,37 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
-def packaged_hyperparams_file(algo: str) -> str:
+def packaged_hyperparams_file(name: str) -> str:
     """
-    Path of the shipped hyperparameter file of an algorithm (inside the installed package).
+    Path of a shipped hyperparameter file (inside the installed package).
 
-    :param algo: The algorithm's name
+    :param name: The file's name without ``.yml``: an algorithm's name (``adc``, the tuned defaults), or
+        ``paper/{algo}`` for the ADC paper's tables
     """
-    return str(resources.files(HYPERPARAMS_PACKAGE).joinpath(f"{algo}.yml"))
+    return str(resources.files(HYPERPARAMS_PACKAGE).joinpath(*f"{name}.yml".split("/")))
 
 
 def shipped_hyperparams_files() -> list[str]:
-    """The names (without ``.yml``) of the hyperparameter files shipped with the package."""
+    """The names (without ``.yml``) of the hyperparameter files shipped with the package, ``paper/`` ones included."""
     folder = resources.files(HYPERPARAMS_PACKAGE)
-    return sorted(item.name[: -len(".yml")] for item in folder.iterdir() if item.name.endswith(".yml"))
+    names = [item.name[: -len(".yml")] for item in folder.iterdir() if item.name.endswith(".yml")]
+    paper = folder.joinpath(PAPER_FOLDER)
+    if paper.is_dir():
+        names += [f"{PAPER_FOLDER}/{item.name[: -len('.yml')]}" for item in paper.iterdir() if item.name.endswith(".yml")]
+    return sorted(names)
 
 
 def find_hyperparams_file(conf_file: str) -> str:
     """
     The path of a hyperparameter file given as a path, or as the name of a shipped file (``adc``, or another
-    ``*.yml`` of :data:`HYPERPARAMS_PACKAGE`, without the extension).
+    ``*.yml`` of :data:`HYPERPARAMS_PACKAGE`, or ``paper/adc``, without the extension).
 
     :param conf_file: A path, or the name of a shipped file
     :raises HyperparamsError: if it is neither
     """
     if os.path.isfile(conf_file):
         return conf_file
-    if os.sep not in conf_file and not conf_file.endswith((".yml", ".yaml")) and conf_file in shipped_hyperparams_files():
+    if conf_file in shipped_hyperparams_files():
         return packaged_hyperparams_file(conf_file)
     raise HyperparamsError(
         conf_file, None, f"hyperparameter file not found (nor a shipped file: {', '.join(shipped_hyperparams_files())})"
