@@ -9,6 +9,7 @@ import numpy as np
 from highway_env import utils
 from highway_env.envs.common.abstract import AbstractEnv
 from highway_env.envs.common.action import action_factory
+from highway_env.envs.common.graphics import EnvViewer
 from highway_env.road.lane import StraightLane
 from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.objects import Obstacle
@@ -37,6 +38,8 @@ class HighwayObstacleEnv(AbstractEnv):
     - **Reward**: ``step_reward`` (+0.001) per step; ``collision_reward`` (-1) on hitting an obstacle or
       leaving the road (a corner of the car beyond a road edge), which both terminate the episode.
     - **Episode**: truncated after ``duration`` seconds (``duration * policy_frequency`` steps).
+    - **Rendering**: ``rgb_array`` is drawn off-screen by pygame: no display is needed, and it also works with
+      ``SDL_VIDEODRIVER=dummy`` (with which highway-env alone draws blank frames).
     - **Info**: ``{"collision": bool, "off_road": bool, "speed": float, "crashed": bool, "action": ...}``.
 
     Configure it as any highway-env environment, with ``config=`` at ``gym.make`` or ``env.unwrapped.configure``
@@ -144,6 +147,17 @@ class HighwayObstacleEnv(AbstractEnv):
             for lane in self.np_random.choice(lanes, size=n_blocked, replace=False):
                 self.road.objects.append(Obstacle(self.road, [x, float(lane) * lane_width]))
             x += float(self.np_random.uniform(low, high))
+
+    def render(self) -> np.ndarray | None:
+        """highway-env's top view as a ``(height, width, 3)`` ``uint8`` array with ``render_mode="rgb_array"``."""
+        if self.render_mode == "rgb_array" and getattr(self, "viewer", None) is None:
+            viewer = EnvViewer(self)
+            # highway-env draws nothing when SDL_VIDEODRIVER=dummy, a common headless setting; drawing off-screen
+            # needs no display, so draw anyway.
+            viewer.enabled = True
+            self.viewer = viewer
+        frame: np.ndarray | None = super().render()
+        return frame
 
     def _off_road(self) -> bool:
         vehicle = self.vehicle

@@ -147,6 +147,14 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._path[: self._path_length].copy()
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """
+        Put the robot back at the start pose (the course's, jittered if configured, or ``options["start_pose"]``).
+
+        :param seed: Seeds the start-pose jitter
+        :param options: ``{"start_pose": (x, y, heading_deg)}`` starts this episode there, without jitter
+        :return: the first observation and ``{"collision": False}``
+        :raises ValueError: if ``options["start_pose"]`` puts the robot on a wall
+        """
         super().reset(seed=seed)
         start = self.course.start
         if options and "start_pose" in options:
@@ -171,6 +179,15 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._lidar.copy(), {"collision": False}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
+        """
+        Turn by ``action[0] * max_steer_deg`` (clipped to ``[-1, 1]``), drive ``speed`` metres, read the lidar.
+
+        :param action: ``(1,)`` array in ``[-1, 1]``
+        :return: observation, reward (``step_reward``, or ``collision_reward`` on a collision), terminated (a
+            collision), truncated (always ``False``: ``gym.make`` adds the 500-step limit) and
+            ``{"collision": bool}``
+        :raises ValueError: if the action is NaN
+        """
         steer = float(action[0])
         if steer > 1.0:
             steer = 1.0

@@ -166,7 +166,12 @@ def test_seeding_reproduces_the_obstacles_and_the_observations():
     assert first[1] != other[1]
 
 
-def test_headless_rgb_array_rendering():
+@pytest.mark.parametrize("sdl_video_driver", [None, "dummy"])
+def test_headless_rgb_array_rendering(monkeypatch, sdl_video_driver):
+    if sdl_video_driver is None:
+        monkeypatch.delenv("SDL_VIDEODRIVER", raising=False)
+    else:
+        monkeypatch.setenv("SDL_VIDEODRIVER", sdl_video_driver)
     env = make(render_mode="rgb_array")
     env.reset(seed=0)
     env.step(STRAIGHT)

@@ -1,0 +1,90 @@
+"""Draw the environment pictures of the documentation into ``docs/_static/envs/``.
+
+- ``courses.png``: every shipped course of the lidar obstacle course, with its start pose;
+- ``lidar_course_frame.png``: ``render_mode="rgb_array"`` of the lidar course after 120 steps;
+- ``highway_obstacle_frame.png``: ``render_mode="rgb_array"`` of the highway task after 8 steps.
+
+Usage::
+
+    python docs/envs/draw_figures.py
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import gymnasium as gym
+import matplotlib
+import numpy as np
+from PIL import Image
+
+import sb3_adc  # noqa: F401 (registers the environments)
+from sb3_adc_envs.lidar_course import load_course, shipped_courses
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+OUT = Path(__file__).resolve().parent.parent / "_static" / "envs"
+
+
+def draw_courses(path: Path) -> None:
+    """All shipped courses side by side, with their start pose and corridor width."""
+    names = shipped_courses()
+    fig, axes = plt.subplots(1, len(names), figsize=(3.4 * len(names), 3.2))
+    for ax, name in zip(axes, names, strict=True):
+        course = load_course(name)
+        for x0, y0, x1, y1 in course.walls:
+            ax.plot([x0, x1], [y0, y1], color="0.2", linewidth=1.4)
+        start = course.start
+        ax.annotate(
+            "",
+            xy=(start.x + 1.2 * math.cos(start.heading), start.y + 1.2 * math.sin(start.heading)),
+            xytext=(start.x, start.y),
+            arrowprops={"arrowstyle": "->", "color": "tab:orange", "linewidth": 1.5},
+        )
+        ax.plot(start.x, start.y, marker="o", color="tab:orange")
+        width = f"width {course.corridor.width:g} m" if course.corridor is not None else "wall polylines"
+        ax.set_title(f"{name}\n({width})", fontsize=9)
+        ax.set_aspect("equal")
+        ax.set_xticks([])
+        ax.set_yticks([])
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def draw_lidar_frame(path: Path) -> None:
+    """A rendered frame of the lidar course: a gentle left-turning controller for 120 steps."""
+    env = gym.make("sb3_adc/LidarObstacleCourse-v0", render_mode="rgb_array")
+    obs, _ = env.reset(seed=0)
+    for _ in range(120):
+        # Steer away from the nearer side (rays 2 and 6 look left and right).
+        action = np.clip([4.0 * (obs[2] - obs[6]) + 2.0 * (obs[1] - obs[7])], -1.0, 1.0).astype(np.float32)
+        obs, _, terminated, _, _ = env.step(action)
+        if terminated:
+            break
+    Image.fromarray(env.render()).save(path)
+    env.close()
+
+
+def draw_highway_frame(path: Path) -> None:
+    """A rendered frame of the highway obstacle task."""
+    env = gym.make("sb3_adc/HighwayObstacle-v0", render_mode="rgb_array")
+    env.reset(seed=2)
+    for _ in range(8):
+        env.step(np.zeros(1, dtype=np.float32))
+    Image.fromarray(env.render()).save(path)
+    env.close()
+
+
+def main() -> None:
+    OUT.mkdir(parents=True, exist_ok=True)
+    draw_courses(OUT / "courses.png")
+    draw_lidar_frame(OUT / "lidar_course_frame.png")
+    draw_highway_frame(OUT / "highway_obstacle_frame.png")
+    print(f"Wrote the pictures in {OUT}")
+
+
+if __name__ == "__main__":
+    main()
