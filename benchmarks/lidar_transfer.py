@@ -21,7 +21,7 @@ Usage::
 
     python benchmarks/lidar_transfer.py                               # ADC, hyperparams/adc.yml
     python benchmarks/lidar_transfer.py --algo ddpg --seed 1
-    python benchmarks/lidar_transfer.py --conf-file benchmarks/configs/lidar_table2_adc.yml --tag adc_table2_seed0
+    python benchmarks/lidar_transfer.py --conf-file hyperparams/paper/adc.yml --tag adc_table2_seed0
     python benchmarks/lidar_transfer.py --tables-only                 # rebuild runs.csv / transfer_table.csv
 """
 

@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import gymnasium as gym
 import pytest
 
+from sb3_adc.config import packaged_hyperparams_file, read_hyperparams_file, resolve_entry, select_entry
 from sb3_adc.config.loader import load_hyperparams
 
-ROOT = Path(__file__).resolve().parents[2]
 ENV_IDS = ["sb3_adc/LidarObstacleCourse-v0", "sb3_adc/LidarObstacleCourseNoisy-v0", "sb3_adc/HighwayObstacle-v0"]
 
 
@@ -35,10 +33,14 @@ def test_adc_entry_uses_the_paper_dueling_critic():
     assert kwargs["critic_learning_rate"] == 2 * kwargs["learning_rate"]
 
 
-def test_table_2_configuration_is_the_papers():
-    conf_file = str(ROOT / "benchmarks" / "configs" / "lidar_table2_adc.yml")
-    kwargs = load_hyperparams("adc", "sb3_adc/LidarObstacleCourse-v0", conf_file=conf_file).model_kwargs
+@pytest.mark.parametrize("algo", ["adc", "ddpg"])
+def test_the_paper_files_hold_table_2(algo):
+    path = packaged_hyperparams_file(f"paper/{algo}")
+    entry, source = select_entry(read_hyperparams_file(path), "sb3_adc/LidarObstacleCourse-v0", path)
+    kwargs = resolve_entry(algo, "sb3_adc/LidarObstacleCourse-v0", entry, source).model_kwargs
     table_2 = {"gamma": 0.9, "buffer_size": 5000, "batch_size": 16, "tau": 0.01}
     table_2.update(learning_rate=1e-4, critic_learning_rate=2e-4)
     assert {key: kwargs[key] for key in table_2} == table_2
-    assert kwargs["policy_kwargs"] == {"net_arch": {"pi": [100, 20], "qf": [100]}, "value_net_arch": [20], "n_intervals": 100}
+    critic = {"qf": [100], "value_net_arch": [20], "n_intervals": 100} if algo == "adc" else {"qf": [100, 20]}
+    assert kwargs["policy_kwargs"]["net_arch"] == {"pi": [100, 20], "qf": critic.pop("qf")}
+    assert {key: kwargs["policy_kwargs"][key] for key in critic} == critic
