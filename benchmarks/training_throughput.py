@@ -53,6 +53,7 @@ class Setting:
 
 SETTINGS = [
     Setting("SB3 default nets (400-300), batch 256", [400, 300], 256, 100),
+    Setting("shipped Pendulum nets (64-64), batch 256", [64, 64], 256, 100),
     Setting("paper Pendulum nets (30), batch 32", [30], 32, 100),
 ]
 

@@ -6,6 +6,6 @@ highway-env: the simulators are imported when an environment that needs them is 
 """
 
 from sb3_adc_envs.registration import register_envs
-from sb3_adc_envs.wrappers import UniformObservationNoise
+from sb3_adc_envs.wrappers import DiscretizedActions, UniformObservationNoise
 
-__all__ = ["UniformObservationNoise", "register_envs"]
+__all__ = ["DiscretizedActions", "UniformObservationNoise", "register_envs"]

@@ -6,6 +6,7 @@ import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.utils import ConstantSchedule
 
+from sb3_adc.adc import policies
 from sb3_adc.adc.policies import ADCPolicy, DuelingIntervalCritic
 
 
@@ -47,17 +48,61 @@ def test_decompose_shapes_and_interval_index(action_dim):
     assert th.equal(interval_index, expected_index)
 
 
+def reference_q(value, advantages, actions, aggregation, interpolation):
+    """Eq. 11 / 13-14 written out with explicit lookups, one branch per action dimension."""
+    n = advantages.shape[-1]
+    if interpolation == "none":
+        index = th.clamp(((actions + 1) / 2 * n).floor().long(), 0, n - 1)
+        selected = advantages.gather(-1, index.unsqueeze(-1)).squeeze(-1)
+    else:
+        position = ((actions + 1) * n / 2 - 0.5).clamp(0, n - 1)
+        lower = position.floor().clamp(max=n - 2).long()
+        share = position - lower
+        below = advantages.gather(-1, lower.unsqueeze(-1)).squeeze(-1)
+        above = advantages.gather(-1, (lower + 1).unsqueeze(-1)).squeeze(-1)
+        selected = (1 - share) * below + share * above
+    baseline = advantages.mean(-1) if aggregation == "mean" else advantages.max(-1).values
+    return value + (selected - baseline).sum(-1, keepdim=True)
+
+
+@pytest.mark.parametrize("row_reading", [False, True])
+@pytest.mark.parametrize("interpolation", ["none", "linear"])
+@pytest.mark.parametrize("aggregation", ["mean", "max"])
+@pytest.mark.parametrize(("value_net_arch", "advantage_net_arch"), [([], []), ([8], []), ([], [8]), ([8], [8])])
 @pytest.mark.parametrize("action_dim", [1, 2])
-@pytest.mark.parametrize("stream_arch", [[], [8]])
-def test_q_equals_value_plus_centred_advantage_of_the_action_interval(action_dim, stream_arch):
-    # Single-layer streams take the fused path ([V | A] weighted in one sum), deeper streams the general one.
-    critic = make_policy(action_dim=action_dim, value_net_arch=stream_arch, advantage_net_arch=stream_arch).critic
-    assert critic.q_networks[0].single_layer_streams == (not stream_arch)
+def test_q_equals_value_plus_centred_advantage_of_the_action_interval(
+    monkeypatch, action_dim, value_net_arch, advantage_net_arch, aggregation, interpolation, row_reading
+):
+    # The critic picks the cheapest of three equivalent computations (reading centred weight rows, one weighted
+    # sum over [V | A], or the two streams): each must give Eq. 13-14 (Eq. 11 for max).
+    monkeypatch.setattr(policies, "ROW_READING_MIN_MACS", 0 if row_reading else 10**12)
+    critic = make_policy(
+        action_dim=action_dim,
+        value_net_arch=value_net_arch,
+        advantage_net_arch=advantage_net_arch,
+        aggregation=aggregation,
+        advantage_interpolation=interpolation,
+    ).critic
     obs, actions = batch(action_dim)
-    value, advantages, interval_index = critic.decompose(obs, actions)
-    selected = advantages.gather(-1, interval_index.unsqueeze(-1)).squeeze(-1)
-    expected = value + (selected - advantages.mean(-1)).sum(-1, keepdim=True)  # Eq. 13-14, summed over branches
+    value, advantages, _ = critic.decompose(obs, actions)
+    expected = reference_q(value, advantages, actions, aggregation, interpolation)
     th.testing.assert_close(critic(obs, actions)[0], expected)
+
+
+@pytest.mark.parametrize("interpolation", ["none", "linear"])
+@pytest.mark.parametrize("value_net_arch", [[], [8]])
+def test_row_reading_has_the_same_gradients(monkeypatch, value_net_arch, interpolation):
+    policy = make_policy(action_dim=2, value_net_arch=value_net_arch, advantage_interpolation=interpolation)
+    obs, actions = batch(2)
+    gradients = []
+    for threshold in (0, 10**12):
+        monkeypatch.setattr(policies, "ROW_READING_MIN_MACS", threshold)
+        policy.critic.zero_grad()
+        action_input = actions.clone().requires_grad_(True)
+        policy.critic.q1_forward(obs, action_input).sum().backward()
+        gradients.append([action_input.grad, *(p.grad for p in policy.critic.parameters())])
+    for with_rows, without_rows in zip(*gradients, strict=True):
+        th.testing.assert_close(with_rows, without_rows)
 
 
 @pytest.mark.parametrize("value_net_arch", [[], [8]])

@@ -173,6 +173,7 @@ class ADC(TD3):
             )
         super()._setup_model()
         update_learning_rate(self.critic.optimizer, self.critic_lr_schedule(1.0))
+        self._actor_parameters = list(self.actor.parameters())
 
     def _setup_lr_schedule(self) -> None:
         super()._setup_lr_schedule()
@@ -235,7 +236,8 @@ class ADC(TD3):
                 actor_losses.append(actor_loss.item())
 
                 self.actor.optimizer.zero_grad()
-                actor_loss.backward()
+                # Only the actor's gradients are needed: autograd skips the critic's weight gradients.
+                actor_loss.backward(inputs=self._actor_parameters)
                 self.actor.optimizer.step()
 
                 # Line 14: soft target updates
@@ -284,8 +286,8 @@ class ADC(TD3):
 
     def _excluded_save_params(self) -> list[str]:
         # The critic schedule is rebuilt from `critic_learning_rate` and `learning_rate` on load;
-        # the last training batch is kept for the logged diagnostics only.
-        return [*super()._excluded_save_params(), "critic_lr_schedule", "_last_batch"]
+        # the last training batch is kept for the logged diagnostics only; the actor's parameters are the policy's.
+        return [*super()._excluded_save_params(), "critic_lr_schedule", "_last_batch", "_actor_parameters"]
 
     def set_parameters(
         self,

@@ -24,6 +24,7 @@ from typing import Literal, get_args
 
 import torch as th
 from torch import nn
+from torch.nn import functional as F
 
 Aggregation = Literal["mean", "max"]
 Interpolation = Literal["none", "linear"]
@@ -66,6 +67,7 @@ class UniformIntervalPartition(nn.Module):
     _inner_edges: th.Tensor
     _unit_vectors: th.Tensor
     _mean_centred_unit_vectors: th.Tensor
+    _value_and_mean_centred_unit_vectors: th.Tensor
 
     def __init__(self, n_intervals: int):
         super().__init__()
@@ -79,6 +81,11 @@ class UniformIntervalPartition(nn.Module):
         self.register_buffer("_inner_edges", edges[1:-1].contiguous(), persistent=False)
         self.register_buffer("_unit_vectors", unit_vectors, persistent=False)
         self.register_buffer("_mean_centred_unit_vectors", unit_vectors - 1.0 / n_intervals, persistent=False)
+        self.register_buffer(
+            "_value_and_mean_centred_unit_vectors",
+            th.cat([th.ones(n_intervals, 1), unit_vectors - 1.0 / n_intervals], dim=1),
+            persistent=False,
+        )
 
     def extra_repr(self) -> str:
         return f"n_intervals={self.n_intervals}"
@@ -107,12 +114,18 @@ class UniformIntervalPartition(nn.Module):
         """
         if interpolation == "none":
             return _rows(self._unit_vectors, self.index(actions))
+        lower, upper_share = self._neighbour_centres(actions)
+        upper_share = upper_share.unsqueeze(-1)
+        return _rows(self._unit_vectors, lower) * (1.0 - upper_share) + _rows(self._unit_vectors, lower + 1) * upper_share
+
+    def _neighbour_centres(self, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """The interval centres on either side of each action: the lower one's index, and the upper one's share
+        of the linear interpolation (in ``[0, 1]``, with a gradient with respect to the action)."""
         n = self.n_intervals
         # Position in units of intervals, measured from the first centre: centre k sits at position k.
         position = ((actions + 1.0) * (n / 2.0) - 0.5).clamp(0.0, n - 1.0)
         lower = position.detach().floor().clamp(max=n - 2).long()
-        upper_share = (position - lower).unsqueeze(-1)
-        return _rows(self._unit_vectors, lower) * (1.0 - upper_share) + _rows(self._unit_vectors, lower + 1) * upper_share
+        return lower, position - lower
 
     def centred_weights(
         self,
@@ -142,6 +155,51 @@ class UniformIntervalPartition(nn.Module):
             raise ValueError('`advantages` are needed to centre on their maximum (aggregation="max").')
         # The gradient of max_z A is the unit vector of the arg max.
         return weights - _rows(self._unit_vectors, advantages.detach().argmax(dim=-1))
+
+    def read_rows(self, table: th.Tensor, actions: th.Tensor, interpolation: Interpolation) -> th.Tensor:
+        """
+        Per sample, the sum over action branches of the table rows the actions select: ``sum_d sum_z w_{d,z} T[d, z]``
+        with the weights of :meth:`selection_weights`, read without forming them.
+
+        :param table: ``(action_dim * n_intervals, width)``, branch-major
+        :param actions: ``(batch, action_dim)`` scaled actions
+        :param interpolation: ``"none"`` or ``"linear"``
+        :return: ``(batch, width)``
+        """
+        batch, action_dim = actions.shape
+        n = self.n_intervals
+        offsets = th.arange(0, action_dim * n, n, device=actions.device) if action_dim > 1 else 0
+        if interpolation == "none":
+            rows = table.index_select(0, (self.index(actions) + offsets).flatten()).view(batch, action_dim, -1)
+        else:
+            lower, upper_share = self._neighbour_centres(actions)
+            lower = (lower + offsets).flatten()
+            below = table.index_select(0, lower).view(batch, action_dim, -1)
+            above = table.index_select(0, lower + 1).view(batch, action_dim, -1)
+            rows = below + upper_share.unsqueeze(-1) * (above - below)
+        return rows.sum(dim=1) if action_dim > 1 else rows.view(batch, -1)
+
+    def q_weights(
+        self,
+        actions: th.Tensor,
+        advantages: th.Tensor | None,
+        aggregation: Aggregation,
+        interpolation: Interpolation,
+    ) -> th.Tensor:
+        """
+        Weights ``[1 | c]`` over ``[V | A]`` (the value, then the flattened advantages) such that their weighted sum
+        is ``Q`` (Eq. 11 or Eq. 14), with ``c`` the :meth:`centred_weights`.
+
+        :param actions: ``(batch, action_dim)`` scaled actions
+        :param advantages: ``(batch, action_dim, n_intervals)``, needed for ``aggregation="max"`` only
+        :param aggregation: ``"mean"`` or ``"max"``
+        :param interpolation: ``"none"`` or ``"linear"``
+        :return: ``(batch, 1 + action_dim * n_intervals)``
+        """
+        if aggregation == "mean" and interpolation == "none" and actions.shape[1] == 1:
+            # The paper's case, in one lookup: [1 | e_{z_a} - 1/n].
+            return self._value_and_mean_centred_unit_vectors.index_select(0, self.index(actions).view(-1))
+        return F.pad(self.centred_weights(actions, advantages, aggregation, interpolation).flatten(1), (1, 0), value=1.0)
 
     def select(self, advantages: th.Tensor, actions: th.Tensor, interpolation: Interpolation) -> th.Tensor:
         """

@@ -22,6 +22,11 @@ from torch.nn import functional as F
 from sb3_adc.adc.intervals import Aggregation, Interpolation, UniformIntervalPartition, aggregate, validate_interval_options
 from sb3_adc.common.spaces import check_action_space
 
+#: Multiply-accumulates (batch x trunk width x advantage outputs) from which a single-layer advantage stream reads
+#: one centred weight row per sample instead of computing every interval's advantage (see
+#: :meth:`DuelingIntervalNetwork.q_value`). Below it, computing them all costs fewer operations.
+ROW_READING_MIN_MACS = 2**21
+
 
 class DuelingIntervalNetwork(nn.Module):
     """
@@ -63,33 +68,21 @@ class DuelingIntervalNetwork(nn.Module):
         self.trunk = nn.Sequential(*create_mlp(input_dim, -1, net_arch, activation_fn))
         self.stream_inputs = nn.Linear(trunk_dim, value_sizes[0] + advantage_sizes[0])
         self.split_sizes = (value_sizes[0], advantage_sizes[0])
-        self.value_stream = nn.Sequential(*_stream_tail(value_sizes, activation_fn))
-        self.advantage_stream = nn.Sequential(*_stream_tail(advantage_sizes, activation_fn))
-        #: Both streams are a single linear layer: ``V`` and ``A`` are the head's outputs, ``[V | A]``.
-        self.single_layer_streams = not value_net_arch and not advantage_net_arch
-
-    def head(self, features_actions: th.Tensor) -> th.Tensor:
-        """
-        The trunk and the first layer of both streams.
-
-        :param features_actions: ``(batch, features_dim + action_dim)``
-        :return: ``(batch, value_first + advantage_first)``, the first-layer outputs of the value stream then of
-            the advantage stream
-        """
-        return self.stream_inputs(self.trunk(features_actions))
+        # The layers after the first of each stream; None for a single-layer stream.
+        self.value_stream = nn.Sequential(*_stream_tail(value_sizes, activation_fn)) if value_net_arch else None
+        self.advantage_stream = nn.Sequential(*_stream_tail(advantage_sizes, activation_fn)) if advantage_net_arch else None
 
     def streams(self, head_outputs: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
         """
-        The rest of both streams, from the output of :meth:`head`.
+        The rest of both streams, from the output of the trunk and ``stream_inputs``.
 
         :param head_outputs: ``(batch, value_first + advantage_first)``
         :return: value ``(batch, 1)`` and advantages ``(batch, action_dim, n_intervals)``
         """
         value, advantages = head_outputs.split(self.split_sizes, dim=1)
-        # Streams without hidden layers are empty: skip the call.
-        if self.value_stream:
+        if self.value_stream is not None:
             value = self.value_stream(value)
-        if self.advantage_stream:
+        if self.advantage_stream is not None:
             advantages = self.advantage_stream(advantages)
         return value, advantages.view(-1, self.action_dim, self.n_intervals)
 
@@ -98,20 +91,78 @@ class DuelingIntervalNetwork(nn.Module):
         :param features_actions: ``(batch, features_dim + action_dim)``
         :return: value ``(batch, 1)`` and advantages ``(batch, action_dim, n_intervals)``
         """
-        return self.streams(self.head(features_actions))
+        return self.streams(self.stream_inputs(self.trunk(features_actions)))
+
+    def q_value(
+        self,
+        features_actions: th.Tensor,
+        actions: th.Tensor,
+        partition: UniformIntervalPartition,
+        aggregation: Aggregation,
+        interpolation: Interpolation,
+    ) -> th.Tensor:
+        """
+        ``Q(s, a)`` (Eq. 11 or Eq. 13-14), computed in the cheapest of three equivalent ways:
+
+        - with a single-layer advantage stream, mean aggregation and a large batch: the centred advantage
+          ``A(s, z) - mean_z A(s, z) = (w_z - mean_z w_z) . h + (b_z - mean_z b_z)`` is the dot product of the
+          trunk output ``h`` with one row of the centred advantage layer, so each sample reads its row instead of
+          computing all ``n_intervals`` advantages;
+        - with single-layer streams, ``[V | A]`` are the outputs of one layer: one weighted sum with weights
+          ``[1 | c]`` (:meth:`UniformIntervalPartition.q_weights`);
+        - otherwise, both streams, then :func:`aggregate`.
+
+        :param features_actions: ``(batch, features_dim + action_dim)``
+        :param actions: Scaled actions ``(batch, action_dim)``
+        :param partition: The intervals of the action range
+        :param aggregation: ``"mean"`` or ``"max"``
+        :param interpolation: ``"none"`` or ``"linear"``
+        :return: ``(batch, 1)``
+        """
+        hidden = self.trunk(features_actions)
+        if (
+            self.advantage_stream is None
+            and aggregation == "mean"
+            and hidden.shape[0] * hidden.shape[1] * self.split_sizes[1] >= ROW_READING_MIN_MACS
+        ):
+            return self._q_value_from_rows(hidden, actions, partition, interpolation)
+        head_outputs = self.stream_inputs(hidden)
+        if self.value_stream is None and self.advantage_stream is None:
+            advantages = head_outputs[:, 1:].view(-1, self.action_dim, self.n_intervals) if aggregation == "max" else None
+            return (head_outputs * partition.q_weights(actions, advantages, aggregation, interpolation)).sum(
+                dim=1, keepdim=True
+            )
+        value, advantages = self.streams(head_outputs)
+        return aggregate(value, advantages, partition.centred_weights(actions, advantages, aggregation, interpolation))
+
+    def _q_value_from_rows(
+        self, hidden: th.Tensor, actions: th.Tensor, partition: UniformIntervalPartition, interpolation: Interpolation
+    ) -> th.Tensor:
+        n_value = self.split_sizes[0]
+        # The layer with its bias as a last column, to read weights and bias in one row: [w_z | b_z] . [h | 1].
+        layer = th.cat([self.stream_inputs.weight, self.stream_inputs.bias.unsqueeze(1)], dim=1)
+        advantage_rows = layer[n_value:].view(self.action_dim, self.n_intervals, -1)
+        centred = (advantage_rows - advantage_rows.mean(dim=1, keepdim=True)).view(self.action_dim * self.n_intervals, -1)
+        rows = partition.read_rows(centred, actions, interpolation)
+        hidden = F.pad(hidden, (0, 1), value=1.0)
+        if self.value_stream is None:
+            return (hidden * (rows + layer[0])).sum(dim=1, keepdim=True)
+        value = self.value_stream(F.linear(hidden, layer[:n_value]))
+        return value + (hidden * rows).sum(dim=1, keepdim=True)
 
     def stream_layer_sizes(self) -> dict[str, list[tuple[int, int]]]:
         """``(in_features, out_features)`` of every linear layer of the trunk and of each stream."""
-        trunk = [(m.in_features, m.out_features) for m in self.trunk if isinstance(m, nn.Linear)]
+
+        def linear_sizes(layers: nn.Sequential | None) -> list[tuple[int, int]]:
+            return [] if layers is None else [(m.in_features, m.out_features) for m in layers if isinstance(m, nn.Linear)]
+
         first_value, first_advantage = self.split_sizes
         first_in = self.stream_inputs.in_features
-        value = [(first_in, first_value)] + [
-            (m.in_features, m.out_features) for m in self.value_stream if isinstance(m, nn.Linear)
-        ]
-        advantage = [(first_in, first_advantage)] + [
-            (m.in_features, m.out_features) for m in self.advantage_stream if isinstance(m, nn.Linear)
-        ]
-        return {"trunk": trunk, "value": value, "advantage": advantage}
+        return {
+            "trunk": linear_sizes(self.trunk),
+            "value": [(first_in, first_value), *linear_sizes(self.value_stream)],
+            "advantage": [(first_in, first_advantage), *linear_sizes(self.advantage_stream)],
+        }
 
 
 def _stream_tail(sizes: list[int], activation_fn: type[nn.Module]) -> list[nn.Module]:
@@ -209,20 +260,6 @@ class DuelingIntervalCritic(BaseModel):
             self.add_module(f"qf{idx}", q_net)
             self.q_networks.append(q_net)
 
-    def _q_value(self, q_net: DuelingIntervalNetwork, features: th.Tensor, actions: th.Tensor) -> th.Tensor:
-        head_outputs = q_net.head(th.cat([features, actions], dim=1))
-        if q_net.single_layer_streams:
-            # V and A are the head's outputs themselves, [V | A]: Eq. 14 is one weighted sum with weights [1 | c],
-            # the cheapest form for autograd (`aggregate` computes the same from the two streams).
-            advantages = (
-                head_outputs[:, 1:].view(-1, q_net.action_dim, q_net.n_intervals) if self.aggregation == "max" else None
-            )
-            weights = self.partition.centred_weights(actions, advantages, self.aggregation, self.advantage_interpolation)
-            return (head_outputs * F.pad(weights.flatten(1), (1, 0), value=1.0)).sum(dim=1, keepdim=True)
-        value, advantages = q_net.streams(head_outputs)
-        weights = self.partition.centred_weights(actions, advantages, self.aggregation, self.advantage_interpolation)
-        return aggregate(value, advantages, weights)
-
     def forward(self, obs: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, ...]:
         """
         :param obs: Observations
@@ -233,7 +270,11 @@ class DuelingIntervalCritic(BaseModel):
         # when the features_extractor is shared with the actor
         with th.set_grad_enabled(not self.share_features_extractor):
             features = self.extract_features(obs, self.features_extractor)
-        return tuple(self._q_value(q_net, features, actions) for q_net in self.q_networks)
+        features_actions = th.cat([features, actions], dim=1)
+        return tuple(
+            q_net.q_value(features_actions, actions, self.partition, self.aggregation, self.advantage_interpolation)
+            for q_net in self.q_networks
+        )
 
     def q1_forward(self, obs: th.Tensor, actions: th.Tensor) -> th.Tensor:
         """
@@ -245,7 +286,9 @@ class DuelingIntervalCritic(BaseModel):
         """
         with th.no_grad():
             features = self.extract_features(obs, self.features_extractor)
-        return self._q_value(self.q_networks[0], features, actions)
+        return self.q_networks[0].q_value(
+            th.cat([features, actions], dim=1), actions, self.partition, self.aggregation, self.advantage_interpolation
+        )
 
     def decompose(self, obs: PyTorchObs, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
         """
