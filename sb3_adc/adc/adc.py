@@ -173,7 +173,12 @@ class ADC(TD3):
             )
         super()._setup_model()
         update_learning_rate(self.critic.optimizer, self.critic_lr_schedule(1.0))
+        # Parameter lists of the per-step updates, gathered once rather than at every gradient step.
         self._actor_parameters = list(self.actor.parameters())
+        self._target_updates = [
+            (list(self.critic.parameters()), list(self.critic_target.parameters())),
+            (self._actor_parameters, list(self.actor_target.parameters())),
+        ]
 
     def _setup_lr_schedule(self) -> None:
         super()._setup_lr_schedule()
@@ -241,8 +246,8 @@ class ADC(TD3):
                 self.actor.optimizer.step()
 
                 # Line 14: soft target updates
-                polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
-                polyak_update(self.actor.parameters(), self.actor_target.parameters(), self.tau)
+                for parameters, target_parameters in self._target_updates:
+                    polyak_update(parameters, target_parameters, self.tau)
                 # Copy running stats, see SB3 GH issue #996
                 polyak_update(self.critic_batch_norm_stats, self.critic_batch_norm_stats_target, 1.0)
                 polyak_update(self.actor_batch_norm_stats, self.actor_batch_norm_stats_target, 1.0)
@@ -286,8 +291,8 @@ class ADC(TD3):
 
     def _excluded_save_params(self) -> list[str]:
         # The critic schedule is rebuilt from `critic_learning_rate` and `learning_rate` on load;
-        # the last training batch is kept for the logged diagnostics only; the actor's parameters are the policy's.
-        return [*super()._excluded_save_params(), "critic_lr_schedule", "_last_batch", "_actor_parameters"]
+        # the last training batch is kept for the logged diagnostics only; the parameter lists are the policy's.
+        return [*super()._excluded_save_params(), "critic_lr_schedule", "_last_batch", "_actor_parameters", "_target_updates"]
 
     def set_parameters(
         self,
