@@ -14,11 +14,11 @@ from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.save_util import load_from_zip_file
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, PyTorchObs, Schedule, TensorDict
-from stable_baselines3.common.utils import FloatSchedule, polyak_update, update_learning_rate
-from stable_baselines3.td3.td3 import TD3
+from stable_baselines3.common.utils import polyak_update
 from torch.nn import functional as F
 
 from sb3_adc.adc.policies import ADCPolicy, CnnPolicy, DuelingIntervalCritic, MlpPolicy, MultiInputPolicy
+from sb3_adc.common.critic_learning_rate import TD3WithCriticLearningRate
 from sb3_adc.common.schedules import ScaledSchedule
 from sb3_adc.common.spaces import check_action_space
 
@@ -28,7 +28,7 @@ SelfADC = TypeVar("SelfADC", bound="ADC")
 PAPER_CRITIC_LR_FACTOR = 2.0
 
 
-class ADC(TD3):
+class ADC(TD3WithCriticLearningRate):
     """
     Actor-Dueling-Critic (ADC).
 
@@ -172,7 +172,6 @@ class ADC(TD3):
                 "algorithm's class.)"
             )
         super()._setup_model()
-        update_learning_rate(self.critic.optimizer, self.critic_lr_schedule(1.0))
         # Parameter lists of the per-step updates, gathered once rather than at every gradient step.
         self._actor_parameters = list(self.actor.parameters())
         self._target_updates = [
@@ -180,26 +179,9 @@ class ADC(TD3):
             (self._actor_parameters, list(self.actor_target.parameters())),
         ]
 
-    def _setup_lr_schedule(self) -> None:
-        super()._setup_lr_schedule()
-        if self.critic_learning_rate is None:
-            self.critic_lr_schedule = ScaledSchedule(self.lr_schedule, PAPER_CRITIC_LR_FACTOR)
-        else:
-            self.critic_lr_schedule = FloatSchedule(self.critic_learning_rate)
-
-    def _update_learning_rate(self, optimizers: list[th.optim.Optimizer] | th.optim.Optimizer) -> None:
-        """
-        Set the learning rates for the current progress: the critic's optimizer follows
-        ``critic_learning_rate``, every other optimizer ``learning_rate``.
-
-        :param optimizers: An optimizer or a list of optimizers.
-        """
-        actor_lr = self.lr_schedule(self._current_progress_remaining)
-        critic_lr = self.critic_lr_schedule(self._current_progress_remaining)
-        self.logger.record("train/learning_rate", actor_lr)
-        self.logger.record("train/critic_learning_rate", critic_lr)
-        for optimizer in optimizers if isinstance(optimizers, list) else [optimizers]:
-            update_learning_rate(optimizer, critic_lr if optimizer is self.critic.optimizer else actor_lr)
+    def _default_critic_lr_schedule(self) -> Schedule:
+        """The paper's critic rate, twice the actor's at every point of training (``critic_learning_rate=None``)."""
+        return ScaledSchedule(self.lr_schedule, PAPER_CRITIC_LR_FACTOR)
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         # Switch to train mode (this affects batch norm / dropout)
@@ -290,9 +272,8 @@ class ADC(TD3):
         )
 
     def _excluded_save_params(self) -> list[str]:
-        # The critic schedule is rebuilt from `critic_learning_rate` and `learning_rate` on load;
-        # the last training batch is kept for the logged diagnostics only; the parameter lists are the policy's.
-        return [*super()._excluded_save_params(), "critic_lr_schedule", "_last_batch", "_actor_parameters", "_target_updates"]
+        # The last training batch is kept for the logged diagnostics only; the parameter lists are the policy's.
+        return [*super()._excluded_save_params(), "_last_batch", "_actor_parameters", "_target_updates"]
 
     def set_parameters(
         self,

@@ -9,11 +9,12 @@ from stable_baselines3 import DDPG
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
-from stable_baselines3.common.utils import FloatSchedule, update_learning_rate
 from stable_baselines3.td3.policies import TD3Policy
 
+from sb3_adc.common.critic_learning_rate import TD3WithCriticLearningRate
 
-class SplitRateDDPG(DDPG):
+
+class SplitRateDDPG(TD3WithCriticLearningRate, DDPG):
     """
     Deep Deterministic Policy Gradient with separate actor and critic learning rates.
 
@@ -46,8 +47,6 @@ class SplitRateDDPG(DDPG):
     :param device: Device (cpu, cuda, ...) on which the code should be run.
     :param _init_setup_model: Whether or not to build the network at the creation of the instance
     """
-
-    critic_lr_schedule: Schedule
 
     def __init__(
         self,
@@ -100,32 +99,3 @@ class SplitRateDDPG(DDPG):
         self.critic_learning_rate = critic_learning_rate
         if _init_setup_model:
             self._setup_model()
-
-    def _setup_model(self) -> None:
-        super()._setup_model()
-        update_learning_rate(self.critic.optimizer, self.critic_lr_schedule(1.0))
-
-    def _setup_lr_schedule(self) -> None:
-        super()._setup_lr_schedule()
-        if self.critic_learning_rate is None:
-            self.critic_lr_schedule = self.lr_schedule
-        else:
-            self.critic_lr_schedule = FloatSchedule(self.critic_learning_rate)
-
-    def _update_learning_rate(self, optimizers: list[th.optim.Optimizer] | th.optim.Optimizer) -> None:
-        """
-        Set the learning rates for the current progress: the critic's optimizer follows
-        ``critic_learning_rate``, every other optimizer ``learning_rate``.
-
-        :param optimizers: An optimizer or a list of optimizers.
-        """
-        actor_lr = self.lr_schedule(self._current_progress_remaining)
-        critic_lr = self.critic_lr_schedule(self._current_progress_remaining)
-        self.logger.record("train/learning_rate", actor_lr)
-        self.logger.record("train/critic_learning_rate", critic_lr)
-        for optimizer in optimizers if isinstance(optimizers, list) else [optimizers]:
-            update_learning_rate(optimizer, critic_lr if optimizer is self.critic.optimizer else actor_lr)
-
-    def _excluded_save_params(self) -> list[str]:
-        # Rebuilt from `critic_learning_rate` and `learning_rate` on load.
-        return [*super()._excluded_save_params(), "critic_lr_schedule"]
