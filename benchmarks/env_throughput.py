@@ -26,7 +26,7 @@ import platform
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -59,8 +59,11 @@ def make_env(env_id: str, level: str) -> gym.Env[Any, Any]:
     if level == "gym.make":
         return gym.make(env_id)
     spec = gym.spec(env_id)
-    creator = load_env_creator(spec.entry_point) if isinstance(spec.entry_point, str) else spec.entry_point
-    return creator(**spec.kwargs)
+    entry_point = spec.entry_point
+    if entry_point is None:
+        raise ValueError(f"{env_id} has no entry point")
+    creator = load_env_creator(entry_point) if isinstance(entry_point, str) else entry_point
+    return cast(gym.Env[Any, Any], creator(**spec.kwargs))
 
 
 def time_steps(env: gym.Env[Any, Any], n_steps: int, seed: int) -> tuple[float, int]:
@@ -122,7 +125,7 @@ def run(scale: float, repeats: int) -> list[dict[str, Any]]:
             if (env_id, level) not in best or seconds < best[env_id, level][0]:
                 best[env_id, level] = (seconds, resets)
         print(f"  repeat {repeat + 1}/{repeats} done", flush=True)
-    rows = []
+    rows: list[dict[str, Any]] = []
     for env_id, level, n_steps in cases:
         envs[env_id, level].close()
         seconds, resets = best[env_id, level]

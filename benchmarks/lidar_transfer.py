@@ -36,23 +36,25 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
 import sb3_adc
 from sb3_adc.config.loader import load_hyperparams
 from sb3_adc_envs.lidar_course import Course, geometry, load_course
+from sb3_adc_envs.lidar_course.env import LidarObstacleCourseEnv
 
 ENV_ID = "sb3_adc/LidarObstacleCourse-v0"
 TRAINING_COURSE = "training"
 UNSEEN_COURSES = ("unseen_narrow", "unseen_wide", "unseen_zigzag", "unseen_arena")
 #: Start-pose jitter of every evaluation episode but the exact-start one.
-EVAL_JITTER = {"start_position_jitter": 0.1, "start_heading_jitter_deg": 10.0}
+EVAL_JITTER: dict[str, Any] = {"start_position_jitter": 0.1, "start_heading_jitter_deg": 10.0}
 MAX_STEPS = 500
 ROOT = Path(__file__).resolve().parent.parent
 FIGURES_DIR = ROOT / "docs" / "_static" / "envs"
@@ -131,7 +133,7 @@ def run_episode(model: BaseAlgorithm, course: str, seed: int, jittered: bool, ce
         if terminated or truncated:
             collision = bool(info["collision"])
             break
-    path = env.unwrapped.trajectory
+    path = cast(LidarObstacleCourseEnv, env.unwrapped).trajectory
     env.close()
     return Episode(course, seed, jittered, steps, collision, laps_driven(path, centre), path)
 
@@ -231,7 +233,7 @@ def train(args: argparse.Namespace, run_dir: Path) -> tuple[BaseAlgorithm, type[
     else:
         model_kwargs = dict(config.model_kwargs)
         policy = model_kwargs.pop("policy")
-        model = algorithm(
+        model = cast(type[OffPolicyAlgorithm], algorithm)(
             policy,
             env,
             action_noise=config.make_action_noise(env.action_space),

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import cast
 
 import gymnasium as gym
 import matplotlib
@@ -64,7 +65,7 @@ def draw_lidar_frame(path: Path) -> None:
         obs, _, terminated, _, _ = env.step(action)
         if terminated:
             break
-    Image.fromarray(env.render()).save(path)
+    Image.fromarray(cast(np.ndarray, env.render())).save(path)
     env.close()
 
 
@@ -74,7 +75,7 @@ def draw_highway_frame(path: Path) -> None:
     env.reset(seed=2)
     for _ in range(8):
         env.step(np.zeros(1, dtype=np.float32))
-    Image.fromarray(env.render()).save(path)
+    Image.fromarray(cast(np.ndarray, env.render())).save(path)
     env.close()
 
 
