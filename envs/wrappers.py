@@ -45,8 +45,9 @@ class UniformObservationNoise(gym.ObservationWrapper[np.ndarray, Any, np.ndarray
             shape=box.shape,
             dtype=box.dtype,
         )
-        self._low = noise_low.astype(np.float64)
-        self._span = (noise_high - noise_low).astype(np.float64)
+        # From the bounds in the observation dtype, as `rng.uniform(self.noise_low, self.noise_high)` would draw.
+        self._low = self.noise_low.astype(np.float64)
+        self._span = self.noise_high.astype(np.float64) - self._low
         self._buffer = np.empty(box.shape, dtype=np.float64)
         self._noise_rng, _ = seeding.np_random()
 

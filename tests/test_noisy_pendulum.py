@@ -106,3 +106,17 @@ def test_importing_sb3_adc_registers_without_importing_simulators():
         "assert 'pybullet' not in sys.modules and 'highway_env' not in sys.modules, sorted(sys.modules)"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_noise_draws_are_those_of_rng_uniform_on_the_bounds():
+    # The wrapper draws into a preallocated buffer; the values must be exactly numpy's uniform draws.
+    from gymnasium.utils import seeding
+
+    wrapper = UniformObservationNoise(gym.make("Pendulum-v1"), low=np.array([-0.1, -0.3, 0.0]), high=0.1)
+    wrapper.reset(seed=11)
+    reference, _ = seeding.np_random(11)
+    reference.uniform(wrapper.noise_low, wrapper.noise_high)  # the reset observation's noise
+    observation = np.array([0.5, -0.25, 3.0], dtype=np.float32)
+    for _ in range(2000):
+        expected = (observation + reference.uniform(wrapper.noise_low, wrapper.noise_high)).astype(np.float32)
+        np.testing.assert_array_equal(wrapper.observation(observation), expected)
