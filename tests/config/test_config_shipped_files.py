@@ -82,3 +82,23 @@ def test_paper_files_hold_the_papers_tables(algo, env_id):
         assert kwargs["policy_kwargs"]["net_arch"] == {"pi": [30], "qf": [30]}
         assert kwargs["policy_kwargs"]["n_intervals"] == 100
         assert kwargs["policy_kwargs"]["value_net_arch"] == [20]
+
+
+TABLE_2 = {"gamma": 0.9, "buffer_size": 5000, "batch_size": 16, "learning_rate": 1e-4, "tau": 0.01}
+
+
+@pytest.mark.parametrize("algo", ["adc", "ddpg", "td3"])
+def test_paper_files_hold_table_2_for_the_lidar_course(algo):
+    env_id = "sb3_adc/LidarObstacleCourse-v0"
+    path = packaged_hyperparams_file(f"paper/{algo}")
+    entry, source = select_entry(read_hyperparams_file(path), env_id, path)
+    kwargs = resolve_entry(algo, env_id, entry, source).model_kwargs
+    assert {key: kwargs[key] for key in TABLE_2} == pytest.approx(TABLE_2)
+    assert kwargs["policy_kwargs"]["net_arch"] == (
+        {"pi": [100, 20], "qf": [100]} if algo == "adc" else {"pi": [100, 20], "qf": [100, 20]}
+    )
+    if algo != "td3":
+        assert kwargs["critic_learning_rate"] == pytest.approx(2e-4)
+    if algo == "adc":
+        assert kwargs["policy_kwargs"]["n_intervals"] == 100
+        assert kwargs["policy_kwargs"]["value_net_arch"] == [20]
