@@ -33,6 +33,16 @@ AGGREGATIONS: tuple[str, ...] = get_args(Aggregation)
 INTERPOLATIONS: tuple[str, ...] = get_args(Interpolation)
 
 
+def check_n_intervals(n_intervals: object) -> None:
+    """
+    Raise ``ValueError`` unless ``n_intervals`` is an integer >= 2.
+
+    :param n_intervals: Number of uniform intervals per action dimension
+    """
+    if isinstance(n_intervals, bool) or not isinstance(n_intervals, int) or n_intervals < 2:
+        raise ValueError(f"`n_intervals` must be an integer >= 2 (one advantage per interval), got {n_intervals!r}.")
+
+
 def validate_interval_options(n_intervals: object, aggregation: object, advantage_interpolation: object) -> None:
     """
     Raise ``ValueError`` naming the parameter and its accepted values when an option of the dueling
@@ -42,8 +52,7 @@ def validate_interval_options(n_intervals: object, aggregation: object, advantag
     :param aggregation: ``"mean"`` (Eq. 12-14) or ``"max"`` (Eq. 11)
     :param advantage_interpolation: ``"none"`` or ``"linear"``
     """
-    if isinstance(n_intervals, bool) or not isinstance(n_intervals, int) or n_intervals < 2:
-        raise ValueError(f"`n_intervals` must be an integer >= 2 (one advantage per interval), got {n_intervals!r}.")
+    check_n_intervals(n_intervals)
     if aggregation not in AGGREGATIONS:
         raise ValueError(f"`aggregation` must be one of {AGGREGATIONS}, got {aggregation!r}.")
     if advantage_interpolation not in INTERPOLATIONS:
@@ -71,8 +80,7 @@ class UniformIntervalPartition(nn.Module):
 
     def __init__(self, n_intervals: int):
         super().__init__()
-        if isinstance(n_intervals, bool) or not isinstance(n_intervals, int) or n_intervals < 2:
-            raise ValueError(f"`n_intervals` must be an integer >= 2, got {n_intervals!r}.")
+        check_n_intervals(n_intervals)
         self.n_intervals = n_intervals
         edges = th.linspace(-1.0, 1.0, n_intervals + 1)
         unit_vectors = th.eye(n_intervals)

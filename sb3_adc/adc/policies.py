@@ -359,8 +359,6 @@ class ADCPolicy(TD3Policy):
         aggregation: Aggregation = "mean",
         advantage_interpolation: Interpolation = "none",
     ):
-        check_action_space(action_space)
-        validate_interval_options(n_intervals, aggregation, advantage_interpolation)
         # TD3Policy.__init__ builds the networks (through ``make_critic``), so the dueling options must be
         # in place before it runs.
         self.dueling_kwargs: dict[str, Any] = {
