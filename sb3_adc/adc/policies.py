@@ -1,7 +1,7 @@
 from __future__ import annotations
 
 import itertools
-from typing import Any
+from typing import Any, Literal, get_args
 
 import torch as th
 from gymnasium import spaces
@@ -19,6 +19,7 @@ from stable_baselines3.td3.policies import TD3Policy
 from torch import nn
 from torch.nn import functional as F
 
+from sb3_adc.adc.designs import ActionAdvantageNetwork, LegendreAdvantageNetwork, StateValueIntervalNetwork
 from sb3_adc.adc.intervals import Aggregation, Interpolation, UniformIntervalPartition, aggregate, validate_interval_options
 from sb3_adc.common.spaces import check_action_space
 
@@ -37,6 +38,8 @@ class DuelingIntervalNetwork(nn.Module):
     The first layers of the two streams read the same trunk output, so one ``nn.Linear`` (``stream_inputs``)
     computes both and its output is split between them: mathematically two separate layers, at half the
     per-layer cost of the optimizer and the target updates.
+
+    This is ``critic_design="paper"``; the other designs are in :mod:`sb3_adc.adc.designs`.
 
     :param input_dim: ``features_dim + action_dim``
     :param action_dim: Number of action dimensions (advantage branches)
@@ -86,16 +89,17 @@ class DuelingIntervalNetwork(nn.Module):
             advantages = self.advantage_stream(advantages)
         return value, advantages.view(-1, self.action_dim, self.n_intervals)
 
-    def forward(self, features_actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+    def forward(self, features: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
         """
-        :param features_actions: ``(batch, features_dim + action_dim)``
+        :param features: ``(batch, features_dim)``
+        :param actions: Scaled actions ``(batch, action_dim)``
         :return: value ``(batch, 1)`` and advantages ``(batch, action_dim, n_intervals)``
         """
-        return self.streams(self.stream_inputs(self.trunk(features_actions)))
+        return self.streams(self.stream_inputs(self.trunk(th.cat([features, actions], dim=1))))
 
     def q_value(
         self,
-        features_actions: th.Tensor,
+        features: th.Tensor,
         actions: th.Tensor,
         partition: UniformIntervalPartition,
         aggregation: Aggregation,
@@ -112,14 +116,14 @@ class DuelingIntervalNetwork(nn.Module):
           ``[1 | c]`` (:meth:`UniformIntervalPartition.q_weights`);
         - otherwise, both streams, then :func:`aggregate`.
 
-        :param features_actions: ``(batch, features_dim + action_dim)``
+        :param features: ``(batch, features_dim)``
         :param actions: Scaled actions ``(batch, action_dim)``
         :param partition: The intervals of the action range
         :param aggregation: ``"mean"`` or ``"max"``
         :param interpolation: ``"none"`` or ``"linear"``
         :return: ``(batch, 1)``
         """
-        hidden = self.trunk(features_actions)
+        hidden = self.trunk(th.cat([features, actions], dim=1))
         if (
             self.advantage_stream is None
             and aggregation == "mean"
@@ -173,13 +177,71 @@ def _stream_tail(sizes: list[int], activation_fn: type[nn.Module]) -> list[nn.Mo
     return layers
 
 
+#: A critic network of any design: each has ``forward(features, actions)`` and ``q_value(...)``.
+CriticNetwork = DuelingIntervalNetwork | StateValueIntervalNetwork | LegendreAdvantageNetwork | ActionAdvantageNetwork
+
+CriticDesign = Literal["paper", "state_value", "legendre", "action_network"]
+#: The designs of the dueling interval critic (``critic_design``), see :class:`DuelingIntervalCritic`.
+CRITIC_DESIGNS: tuple[str, ...] = get_args(CriticDesign)
+#: The designs whose advantage has one output per interval (the others evaluate it at the action itself).
+INTERVAL_OUTPUT_DESIGNS = ("paper", "state_value")
+#: The critic design of ``ADC("MlpPolicy", env)`` (chosen by the critic study: docs/results).
+DEFAULT_CRITIC_DESIGN: CriticDesign = "paper"
+#: Degree of the ``"legendre"`` advantage polynomial unless ``basis_degree`` says otherwise.
+DEFAULT_BASIS_DEGREE = 4
+
+
+def validate_critic_options(
+    critic_design: object,
+    n_intervals: object,
+    aggregation: object,
+    advantage_interpolation: object,
+    basis_degree: object,
+    n_critics: object = 1,
+) -> None:
+    """
+    Raise ``ValueError`` naming the parameter and its accepted values when an option of
+    :class:`DuelingIntervalCritic` is invalid. The one place these rules live: the hyperparameter files and the
+    CLI ask it.
+
+    :param critic_design: One of :data:`CRITIC_DESIGNS`
+    :param n_intervals: Number of uniform intervals per action dimension
+    :param aggregation: ``"mean"`` or ``"max"``
+    :param advantage_interpolation: ``"none"`` or ``"linear"`` (``"linear"`` for the interval-output designs only)
+    :param basis_degree: Degree of the ``"legendre"`` polynomial, an integer in ``[1, 16]``
+    :param n_critics: Number of critic networks, an integer >= 1
+    """
+    if critic_design not in CRITIC_DESIGNS:
+        raise ValueError(f"`critic_design` must be one of {CRITIC_DESIGNS}, got {critic_design!r}.")
+    validate_interval_options(n_intervals, aggregation, advantage_interpolation)
+    if advantage_interpolation != "none" and critic_design not in INTERVAL_OUTPUT_DESIGNS:
+        raise ValueError(
+            f'`advantage_interpolation` must be "none" with critic_design={critic_design!r} (its advantage is '
+            f"evaluated at the action itself); interpolation applies to {INTERVAL_OUTPUT_DESIGNS}."
+        )
+    if isinstance(basis_degree, bool) or not isinstance(basis_degree, int) or not 1 <= basis_degree <= 16:
+        raise ValueError(f"`basis_degree` must be an integer in [1, 16], got {basis_degree!r}.")
+    if isinstance(n_critics, bool) or not isinstance(n_critics, int) or n_critics < 1:
+        raise ValueError(f"`n_critics` must be an integer >= 1, got {n_critics!r}.")
+
+
 class DuelingIntervalCritic(BaseModel):
     """
     Dueling interval critic of the Actor-Dueling-Critic method.
 
-    Actor-Dueling-Critic paper, Section 4 and Figure 3: a shared layer over (state, action), a value stream
-    ``V`` and an advantage stream with one output per uniform interval of the action range, combined as
-    ``Q = V + A(s, z_a) - mean_z A(s, z)`` (Eq. 13-14), or with ``max`` in place of ``mean`` (Eq. 11).
+    Actor-Dueling-Critic paper, Section 4 and Figure 3: a value stream ``V`` and an advantage stream with one
+    value per uniform interval of the action range, combined as ``Q = V + A(s, z_a) - mean_z A(s, z)``
+    (Eq. 13-14), or with ``max`` in place of ``mean`` (Eq. 11). ``critic_design`` chooses what computes them:
+
+    - ``"paper"``: the paper's form, a shared trunk over (state, action) under both streams, one advantage output
+      per interval (:class:`DuelingIntervalNetwork`);
+    - ``"state_value"``: ``V`` from the state only, the paper's interval advantages on a trunk over (state, action);
+    - ``"legendre"``: ``V`` and a polynomial advantage from the state only, ``A(s, a) = sum_k c_k(s) P_k(a)``,
+      centred on its mean over the interval centres;
+    - ``"action_network"``: ``V`` from the state only, an advantage network over (state, action) evaluated at the
+      action and centred on its mean over the interval centres.
+
+    See :mod:`sb3_adc.adc.designs` for the equations of each design.
 
     It honours the contract of SB3's :class:`~stable_baselines3.common.policies.ContinuousCritic`, so
     TD3's update machinery applies: ``forward`` returns one ``(batch, 1)`` Q tensor per critic network,
@@ -188,12 +250,13 @@ class DuelingIntervalCritic(BaseModel):
 
     Extensions beyond the paper (which covers 1-D actions): with several action dimensions the advantage
     is factorised, one branch of ``n_intervals`` per dimension, each centred on its own and summed (as in
-    action-branching dueling networks); ``advantage_interpolation="linear"`` makes the advantage piecewise
-    linear in the action; ``n_critics=2`` gives a twin, clipped double-Q variant.
+    action-branching dueling networks); ``advantage_interpolation="linear"`` makes the interval advantage
+    piecewise linear in the action; ``n_critics=2`` gives a twin, clipped double-Q variant.
 
     :param observation_space: Observation space
     :param action_space: Action space (a bounded ``Box``)
-    :param net_arch: Hidden layer sizes of the shared trunk over ``[features, action]``
+    :param net_arch: Hidden layer sizes of the trunk (over ``[features, action]``, or over the features for
+        ``"legendre"``) and of the state-value network of ``"state_value"`` and ``"action_network"``
     :param features_extractor: Network to extract features (a CNN for images, ``nn.Flatten()`` otherwise)
     :param features_dim: Number of features
     :param activation_fn: Activation function
@@ -206,7 +269,9 @@ class DuelingIntervalCritic(BaseModel):
         outputs sit directly on the trunk)
     :param aggregation: ``"mean"`` (Eq. 12-14, default) or ``"max"`` (Eq. 11)
     :param advantage_interpolation: ``"none"`` (the paper: advantage of the interval containing the action)
-        or ``"linear"`` (interpolate between the two nearest interval centres)
+        or ``"linear"`` (interpolate between the two nearest interval centres; interval-output designs only)
+    :param critic_design: One of :data:`CRITIC_DESIGNS`
+    :param basis_degree: Degree of the advantage polynomial of ``critic_design="legendre"``
     """
 
     features_extractor: BaseFeaturesExtractor
@@ -227,6 +292,8 @@ class DuelingIntervalCritic(BaseModel):
         advantage_net_arch: list[int] | None = None,
         aggregation: Aggregation = "mean",
         advantage_interpolation: Interpolation = "none",
+        critic_design: CriticDesign = DEFAULT_CRITIC_DESIGN,
+        basis_degree: int = DEFAULT_BASIS_DEGREE,
     ):
         super().__init__(
             observation_space,
@@ -235,27 +302,28 @@ class DuelingIntervalCritic(BaseModel):
             normalize_images=normalize_images,
         )
         check_action_space(action_space)
-        validate_interval_options(n_intervals, aggregation, advantage_interpolation)
-        if isinstance(n_critics, bool) or not isinstance(n_critics, int) or n_critics < 1:
-            raise ValueError(f"`n_critics` must be an integer >= 1, got {n_critics!r}.")
+        validate_critic_options(critic_design, n_intervals, aggregation, advantage_interpolation, basis_degree, n_critics)
 
         action_dim = get_action_dim(self.action_space)
         self.share_features_extractor = share_features_extractor
         self.n_critics = n_critics
         self.n_intervals = n_intervals
+        self.critic_design: CriticDesign = critic_design
         self.aggregation: Aggregation = aggregation
         self.advantage_interpolation: Interpolation = advantage_interpolation
         self.partition = UniformIntervalPartition(n_intervals)
-        self.q_networks: list[DuelingIntervalNetwork] = []
+        self.q_networks: list[CriticNetwork] = []
         for idx in range(n_critics):
-            q_net = DuelingIntervalNetwork(
-                features_dim + action_dim,
+            q_net = _make_network(
+                critic_design,
+                features_dim,
                 action_dim,
                 n_intervals,
-                net_arch,
+                list(net_arch),
                 list(value_net_arch or []),
                 list(advantage_net_arch or []),
                 activation_fn,
+                basis_degree,
             )
             self.add_module(f"qf{idx}", q_net)
             self.q_networks.append(q_net)
@@ -270,9 +338,8 @@ class DuelingIntervalCritic(BaseModel):
         # when the features_extractor is shared with the actor
         with th.set_grad_enabled(not self.share_features_extractor):
             features = self.extract_features(obs, self.features_extractor)
-        features_actions = th.cat([features, actions], dim=1)
         return tuple(
-            q_net.q_value(features_actions, actions, self.partition, self.aggregation, self.advantage_interpolation)
+            q_net.q_value(features, actions, self.partition, self.aggregation, self.advantage_interpolation)
             for q_net in self.q_networks
         )
 
@@ -286,9 +353,7 @@ class DuelingIntervalCritic(BaseModel):
         """
         with th.no_grad():
             features = self.extract_features(obs, self.features_extractor)
-        return self.q_networks[0].q_value(
-            th.cat([features, actions], dim=1), actions, self.partition, self.aggregation, self.advantage_interpolation
-        )
+        return self.q_networks[0].q_value(features, actions, self.partition, self.aggregation, self.advantage_interpolation)
 
     def decompose(self, obs: PyTorchObs, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
         """
@@ -296,13 +361,44 @@ class DuelingIntervalCritic(BaseModel):
 
         :param obs: Observations
         :param actions: Scaled actions ``(batch, action_dim)``
-        :return: ``value`` of shape ``(batch, 1)``, ``advantages`` of shape ``(batch, action_dim, n_intervals)``
-            (raw, before centring) and ``interval_index`` of shape ``(batch, action_dim)``, the interval that
-            contains each action component
+        :return: ``value`` of shape ``(batch, 1)``, ``advantages`` of shape ``(batch, branches, n_intervals)``
+            (raw, before centring: the interval outputs, or the advantage at the interval centres for the designs
+            that evaluate it at the action; ``branches`` is ``action_dim``, or 1 for ``"action_network"``, whose
+            advantage reads the whole action) and ``interval_index`` of shape ``(batch, action_dim)``, the interval
+            that contains each action component
         """
         features = self.extract_features(obs, self.features_extractor)
-        value, advantages = self.q_networks[0](th.cat([features, actions], dim=1))
+        value, advantages = self.q_networks[0](features, actions)
         return value, advantages, self.partition.index(actions)
+
+
+def _make_network(
+    critic_design: CriticDesign,
+    features_dim: int,
+    action_dim: int,
+    n_intervals: int,
+    net_arch: list[int],
+    value_net_arch: list[int],
+    advantage_net_arch: list[int],
+    activation_fn: type[nn.Module],
+    basis_degree: int,
+) -> CriticNetwork:
+    """One critic network of the given design."""
+    if critic_design == "paper":
+        return DuelingIntervalNetwork(
+            features_dim + action_dim, action_dim, n_intervals, net_arch, value_net_arch, advantage_net_arch, activation_fn
+        )
+    if critic_design == "legendre":
+        return LegendreAdvantageNetwork(
+            features_dim, action_dim, n_intervals, net_arch, value_net_arch, advantage_net_arch, activation_fn, basis_degree
+        )
+    if critic_design == "state_value":
+        return StateValueIntervalNetwork(
+            features_dim, action_dim, n_intervals, net_arch, value_net_arch, advantage_net_arch, activation_fn
+        )
+    return ActionAdvantageNetwork(
+        features_dim, action_dim, n_intervals, net_arch, value_net_arch, advantage_net_arch, activation_fn
+    )
 
 
 class ADCPolicy(TD3Policy):
@@ -334,6 +430,9 @@ class ADCPolicy(TD3Policy):
     :param advantage_net_arch: Hidden layer sizes of the advantage stream
     :param aggregation: ``"mean"`` (Eq. 12-14) or ``"max"`` (Eq. 11)
     :param advantage_interpolation: ``"none"`` (the paper) or ``"linear"``
+    :param critic_design: What computes the value and advantage streams: ``"paper"`` (the paper's form),
+        ``"state_value"``, ``"legendre"`` or ``"action_network"`` (see :class:`DuelingIntervalCritic`)
+    :param basis_degree: Degree of the advantage polynomial of ``critic_design="legendre"``
     """
 
     critic: DuelingIntervalCritic  # type: ignore[assignment]
@@ -358,6 +457,8 @@ class ADCPolicy(TD3Policy):
         advantage_net_arch: list[int] | None = None,
         aggregation: Aggregation = "mean",
         advantage_interpolation: Interpolation = "none",
+        critic_design: CriticDesign = DEFAULT_CRITIC_DESIGN,
+        basis_degree: int = DEFAULT_BASIS_DEGREE,
     ):
         # TD3Policy.__init__ builds the networks (through ``make_critic``), so the dueling options must be
         # in place before it runs.
@@ -367,6 +468,8 @@ class ADCPolicy(TD3Policy):
             "advantage_net_arch": list(advantage_net_arch or []),
             "aggregation": aggregation,
             "advantage_interpolation": advantage_interpolation,
+            "critic_design": critic_design,
+            "basis_degree": basis_degree,
         }
         super().__init__(
             observation_space,

@@ -13,6 +13,8 @@ import inspect
 
 from stable_baselines3.common.base_class import BaseAlgorithm
 
+from sb3_adc.adc.intervals import AGGREGATIONS, INTERPOLATIONS
+from sb3_adc.adc.policies import CRITIC_DESIGNS
 from sb3_adc.config import validators as v
 
 #: RL-Zoo keys read by the experiment tooling itself.
@@ -42,10 +44,13 @@ EPSILON_NOISE_KEYS: dict[str, v.Validator] = {
 }
 
 #: ADC policy options accepted at the top level of an entry (merged into ``policy_kwargs``).
+#: The accepted values come from the critic (:mod:`sb3_adc.adc.policies`, which also checks how they combine).
 ADC_POLICY_KEYS: dict[str, v.Validator] = {
     "n_intervals": v.integer(2),
-    "aggregation": v.choice("mean", "max"),
-    "advantage_interpolation": v.choice("none", "linear"),
+    "aggregation": v.choice(*AGGREGATIONS),
+    "advantage_interpolation": v.choice(*INTERPOLATIONS),
+    "critic_design": v.choice(*CRITIC_DESIGNS),
+    "basis_degree": v.integer(1),
 }
 
 #: Types of the constructor keywords of the supported algorithms (others accept any YAML scalar).

@@ -1,0 +1,273 @@
+"""
+The critic study: does ADC's shipped default beat equally budgeted DDPG, TD3 and SAC, on seeds tuning never saw?
+
+Every configuration is a ``sb3-adc benchmark`` grid (the one engine: resumable, one process per run) on the same
+environments, seeds and budget, evaluated the same way; the tables are merged with the configuration's name in
+the ``algo`` column and summarised with rliable: IQM of the final return with 95% stratified-bootstrap CIs, the
+across-seed standard deviation, the area under the evaluation curve (mean evaluation return over the run, with
+its IQM and CI), and the probability that the shipped ADC improves on each other configuration (with CI).
+
+Configurations (:data:`CONFIGS`): the shipped ADC entry (its default critic design), the same entry with the
+paper's critic (``critic_design: paper``) and the other designs, and the shipped DDPG, TD3 and SAC entries.
+TD3's and SAC's shipped Pendulum entries are the RL Zoo's. Every run gets the same budget (``--n-timesteps``,
+default 20 000 steps = 100 episodes of 200 steps).
+
+The runs go to ``benchmarks/runs/critic_study/`` (not committed); the tables to
+``benchmarks/results/critic_study/{grid}/`` and the figures to ``docs/_static/benchmarks/critic_study_*.png``.
+
+Usage::
+
+    python benchmarks/critic_study.py --workers 2                       # the evidence grid, seeds 1000-1009
+    python benchmarks/critic_study.py --grid screen --workers 2         # the design screen on tuning seeds 0-4
+    python benchmarks/critic_study.py --configs adc ddpg --workers 2    # a subset (resumes the rest later)
+    python benchmarks/critic_study.py --quick                           # a smoke run
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import stable_baselines3
+import torch as th
+from rliable import library as rly
+from rliable import metrics
+
+import sb3_adc
+from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CSV, BenchmarkSettings, RunOutcome, run_benchmark
+from sb3_adc.experiment.plots import plot_results
+from sb3_adc.experiment.statistics import CONFIDENCE
+
+ROOT = Path(__file__).resolve().parent
+RUNS_DIR = ROOT / "runs" / "critic_study"
+RESULTS_DIR = ROOT / "results" / "critic_study"
+DOCS_STATIC = ROOT.parent / "docs" / "_static" / "benchmarks"
+
+#: Configuration name -> (algorithm, hyperparameter overrides of its shipped entry).
+CONFIGS: dict[str, tuple[str, dict[str, Any]]] = {
+    "adc": ("adc", {}),
+    "adc_paper": ("adc", {"critic_design": "paper"}),
+    "adc_state_value": ("adc", {"critic_design": "state_value"}),
+    "adc_legendre": ("adc", {"critic_design": "legendre"}),
+    "adc_action_network": ("adc", {"critic_design": "action_network", "n_intervals": 16}),
+    "ddpg": ("ddpg", {}),
+    "td3": ("td3", {}),
+    "sac": ("sac", {}),
+}
+
+#: Grid name -> (environments, seeds, default configurations).
+GRIDS: dict[str, tuple[list[str], list[int], list[str]]] = {
+    # Fresh seeds that no tuning or design choice saw.
+    "evidence": (
+        ["sb3_adc/NoisyPendulum-v1", "Pendulum-v1"],
+        list(range(1000, 1010)),
+        ["adc", "adc_paper", "ddpg", "td3", "sac"],
+    ),
+    # The design screen, on the tuning seeds.
+    "screen": (
+        ["sb3_adc/NoisyPendulum-v1"],
+        list(range(5)),
+        ["adc_legendre", "adc_action_network", "ddpg", "adc_state_value", "adc_paper"],
+    ),
+}
+
+#: The configuration whose improvement over the others is measured.
+REFERENCE = "adc"
+
+
+def report(outcome: RunOutcome, done: int, total: int) -> None:
+    final = "" if outcome.final is None else f" final return {outcome.final['mean_return']:.1f}"
+    print(f"[{done}/{total}] {outcome.spec}: {outcome.status}{final}", flush=True)
+    if outcome.status == "failed":
+        print(outcome.error, flush=True)
+
+
+def run_config(name: str, envs: list[str], seeds: list[int], folder: Path, n_timesteps: int, workers: int) -> dict[str, str]:
+    """Train (or resume, or skip when finished) one configuration's grid; return its tables."""
+    algo, overrides = CONFIGS[name]
+    settings = BenchmarkSettings(
+        algos=[algo],
+        env_ids=envs,
+        seeds=seeds,
+        log_folder=str(folder / name),
+        n_timesteps=n_timesteps,
+        overrides=dict(overrides),
+        eval_episodes=5,
+        final_eval_episodes=20,
+        device="cpu",
+    )
+    result = run_benchmark(settings, workers=workers, report=report)
+    if result.failures:
+        raise SystemExit(f"{len(result.failures)} runs of {name} failed; re-run to retry them")
+    return result.tables
+
+
+def merge(tables: dict[str, dict[str, str]], table: str) -> pd.DataFrame:
+    """One table of every configuration, with the configuration's name in the ``algo`` column."""
+    frames = []
+    for name, paths in tables.items():
+        frame = pd.read_csv(paths[table])
+        frame["algo"] = name
+        frames.append(frame)
+    return pd.concat(frames, ignore_index=True)
+
+
+def _interval(data: dict[str, Any], func: Any, reps: int, seed: int) -> tuple[dict[str, Any], dict[str, Any]]:
+    # rliable draws its resamples from NumPy's global generator: seed it, and restore it afterwards.
+    state = np.random.get_state()  # noqa: NPY002
+    np.random.seed(seed)  # noqa: NPY002
+    try:
+        with warnings.catch_warnings():
+            # rliable passes `random_state` to arch, which deprecates it.
+            warnings.filterwarnings("ignore", category=FutureWarning, module="arch")
+            points, intervals = rly.get_interval_estimates(
+                data, func, reps=reps, confidence_interval_size=CONFIDENCE, random_state=np.random.RandomState(seed)
+            )
+    finally:
+        np.random.set_state(state)  # noqa: NPY002
+    return points, intervals
+
+
+def summary(final: pd.DataFrame, evaluations: pd.DataFrame, reps: int) -> pd.DataFrame:
+    """
+    Per environment and configuration: final-return IQM and mean with CIs, across-seed std, area under the
+    evaluation curve (per run: the mean evaluation return over the run, trapezoidal in timesteps) with its IQM
+    and CI, and the probability that :data:`REFERENCE` improves on the configuration (final return), with CI.
+    """
+    rows = []
+    for env, env_final in final.groupby("env", sort=True):
+        scores: dict[str, np.ndarray] = {}
+        areas: dict[str, np.ndarray] = {}
+        for name, group in env_final.groupby("algo", sort=False):
+            ordered = group.sort_values("seed")
+            scores[str(name)] = ordered["mean_return"].to_numpy(np.float64).reshape(-1, 1)
+            curves = evaluations[(evaluations["env"] == env) & (evaluations["algo"] == name)]
+            per_run = []
+            for seed in ordered["seed"]:
+                curve = curves[curves["seed"] == seed].sort_values("timesteps")
+                x, y = curve["timesteps"].to_numpy(np.float64), curve["mean_return"].to_numpy(np.float64)
+                per_run.append(np.trapezoid(y, x) / (x[-1] - x[0]) if len(x) > 1 else np.nan)
+            areas[str(name)] = np.asarray(per_run).reshape(-1, 1)
+        iqm_mean = lambda x: np.array([metrics.aggregate_iqm(x), metrics.aggregate_mean(x)])  # noqa: E731
+        final_points, final_intervals = _interval(scores, iqm_mean, reps, 0)
+        area_points, area_intervals = _interval(areas, iqm_mean, reps, 1)
+        improvement: tuple[dict[str, Any], dict[str, Any]] = ({}, {})
+        if REFERENCE in scores:
+            pairs = {
+                name: (scores[REFERENCE], other)
+                for name, other in scores.items()
+                if name != REFERENCE and other.shape == scores[REFERENCE].shape
+            }
+            if pairs:
+                improvement = _interval(pairs, metrics.probability_of_improvement, reps, 2)
+        for name in scores:
+            row: dict[str, Any] = {
+                "env": env,
+                "config": name,
+                "n_runs": scores[name].shape[0],
+                "final_iqm": final_points[name][0],
+                "final_iqm_ci_low": final_intervals[name][0, 0],
+                "final_iqm_ci_high": final_intervals[name][1, 0],
+                "final_mean": final_points[name][1],
+                "final_std": float(scores[name].std(ddof=1)) if scores[name].shape[0] > 1 else np.nan,
+                "auc_iqm": area_points[name][0],
+                "auc_iqm_ci_low": area_intervals[name][0, 0],
+                "auc_iqm_ci_high": area_intervals[name][1, 0],
+                "auc_mean": area_points[name][1],
+            }
+            if name in improvement[0]:
+                row["p_improvement_of_adc"] = float(np.asarray(improvement[0][name]).reshape(-1)[0])
+                low, high = np.asarray(improvement[1][name]).reshape(2, -1)[:, 0]
+                row["p_improvement_ci_low"], row["p_improvement_ci_high"] = float(low), float(high)
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def markdown(table: pd.DataFrame) -> str:
+    lines = [
+        "| env | configuration | runs | final IQM [95% CI] | final mean | across-seed std | AUC IQM [95% CI] | "
+        "P(adc > config) [95% CI] |",
+        "|---|---|---:|---|---:|---:|---|---|",
+    ]
+    for row in table.itertuples():
+        improvement = "—"
+        if not pd.isna(getattr(row, "p_improvement_of_adc", np.nan)):
+            improvement = f"{row.p_improvement_of_adc:.2f} [{row.p_improvement_ci_low:.2f}, {row.p_improvement_ci_high:.2f}]"
+        lines.append(
+            f"| {row.env} | {row.config} | {row.n_runs} | {row.final_iqm:.1f} [{row.final_iqm_ci_low:.1f}, "
+            f"{row.final_iqm_ci_high:.1f}] | {row.final_mean:.1f} | {row.final_std:.1f} | {row.auc_iqm:.1f} "
+            f"[{row.auc_iqm_ci_low:.1f}, {row.auc_iqm_ci_high:.1f}] | {improvement} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--grid", choices=sorted(GRIDS), default="evidence")
+    parser.add_argument("--configs", nargs="+", choices=sorted(CONFIGS), help="configurations (default: the grid's)")
+    parser.add_argument("--envs", nargs="+", help="environments (default: the grid's)")
+    parser.add_argument("-n", "--n-timesteps", type=int, default=20_000, help="budget of every run")
+    parser.add_argument("--workers", type=int, default=1, help="parallel runs")
+    parser.add_argument("--reps", type=int, default=5000, help="bootstrap replications")
+    parser.add_argument("--quick", action="store_true", help="smoke run: 2 seeds, 600 steps, results in *_quick")
+    args = parser.parse_args()
+    th.set_num_threads(1)
+    envs, seeds, default_configs = GRIDS[args.grid]
+    envs = args.envs or envs
+    configs = args.configs or default_configs
+    name = args.grid + ("_quick" if args.quick else "")
+    if args.quick:
+        seeds, args.n_timesteps, args.reps = seeds[:2], 600, 200
+    folder = RUNS_DIR / name
+    output = RESULTS_DIR / name
+    output.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    tables = {config: run_config(config, envs, seeds, folder, args.n_timesteps, args.workers) for config in configs}
+    elapsed = time.perf_counter() - start
+    final, evaluations = merge(tables, FINAL_CSV), merge(tables, EVALUATIONS_CSV)
+    final.to_csv(output / FINAL_CSV, index=False)
+    evaluations.to_csv(output / EVALUATIONS_CSV, index=False)
+    merge(tables, EPISODES_CSV).to_csv(output / EPISODES_CSV, index=False)
+    table = summary(final, evaluations, args.reps)
+    table.to_csv(output / "summary.csv", index=False)
+    (output / "summary.md").write_text(markdown(table))
+    plots = plot_results(evaluations, str(output), final=final, episodes=pd.read_csv(output / EPISODES_CSV), reps=args.reps)
+    if not args.quick:
+        DOCS_STATIC.mkdir(parents=True, exist_ok=True)
+        for figure in plots.figures:
+            os.replace(figure, DOCS_STATIC / f"critic_study_{args.grid}_{Path(figure).name}")
+    metadata_path = output / "metadata.json"
+    previous = json.loads(metadata_path.read_text()) if metadata_path.is_file() else {}
+    wall_times = dict(previous.get("wall_time_s_per_invocation", {}))
+    wall_times[f"{len(wall_times)}: {' '.join(configs)}"] = round(elapsed, 1)
+    metadata = {
+        "grid": args.grid,
+        "configs": {config: {"algo": CONFIGS[config][0], "overrides": CONFIGS[config][1]} for config in tables},
+        "envs": envs,
+        "seeds": seeds,
+        "n_timesteps": args.n_timesteps,
+        "eval": "20 evaluations of 5 deterministic episodes per run; final: 20 deterministic episodes",
+        "wall_time_s_per_invocation": wall_times,
+        "workers": args.workers,
+        "bootstrap_reps": args.reps,
+        "sb3_adc": sb3_adc.__version__,
+        "stable_baselines3": stable_baselines3.__version__,
+        "torch": th.__version__,
+        "python": platform.python_version(),
+        "cpu_count": os.cpu_count(),
+    }
+    metadata_path.write_text(json.dumps(metadata, indent=2) + "\n")
+    print(f"\n{args.grid}: {len(seeds)} seeds x {len(configs)} configurations, {args.n_timesteps} steps per run")
+    print(markdown(table))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,267 @@
+"""
+Critic designs of the dueling interval critic beyond the paper's form.
+
+ADC paper, Section 4 (Eq. 13-14): ``Q(s, a) = V(s) + A(s, z_a) - mean_z A(s, z)``, one advantage per uniform
+interval ``z`` of the action range. The paper computes both streams from one layer over ``[s, a]``
+(``critic_design="paper"``, :class:`~sb3_adc.adc.policies.DuelingIntervalNetwork`), so its ``V`` depends on the
+action, and each interval's advantage is a separate output trained only by the samples whose action falls in
+that interval. The designs here keep the equation and change what computes its terms:
+
+- ``"state_value"`` (:class:`StateValueIntervalNetwork`): ``V`` reads the state features only; the interval
+  advantages are the paper's, on a trunk over ``[s, a]``.
+- ``"legendre"`` (:class:`LegendreAdvantageNetwork`): ``V`` and the advantage read the state only, and the
+  advantage of every interval is a polynomial of degree ``basis_degree`` in the interval centre:
+  ``A(s, z) = sum_k c_k(s) P_k(centre_z)`` (Legendre polynomials ``P_k``). Neighbouring intervals share
+  strength, every sample trains every interval's advantage, and the advantage is evaluated at the action
+  itself, ``A(s, a) = sum_k c_k(s) P_k(a)``, so ``dQ/da`` is a smooth polynomial.
+- ``"action_network"`` (:class:`ActionAdvantageNetwork`): ``V`` reads the state only; the advantage is a network
+  over ``[s, a]`` evaluated at the action, centred on its mean (or maximum) over the interval centres:
+  ``Q = V(s) + A(s, a) - mean_z A(s, centre_z)``.
+
+Every design exposes the same two methods: ``forward(features, actions)`` gives ``V`` ``(batch, 1)`` and the
+advantages of the interval centres ``(batch, action_dim, n_intervals)``, and ``q_value`` gives ``Q``
+``(batch, 1)``. With several action dimensions the advantage is one branch per dimension, summed
+(:class:`LegendreAdvantageNetwork`), or a network of the whole action centred on a Latin-hypercube set of
+interval centres (:class:`ActionAdvantageNetwork`).
+"""
+
+from __future__ import annotations
+
+import torch as th
+from stable_baselines3.common.torch_layers import create_mlp
+from torch import nn
+
+from sb3_adc.adc.intervals import Aggregation, Interpolation, UniformIntervalPartition, aggregate
+
+
+def legendre_basis(x: th.Tensor, degree: int) -> th.Tensor:
+    """
+    The Legendre polynomials ``P_1 .. P_degree`` at ``x`` (Bonnet's recursion), orthogonal on ``[-1, 1]``.
+
+    ``P_0`` (a constant) is left out: a constant advantage is not identifiable beside ``V``.
+
+    :param x: Points in ``[-1, 1]``, any shape
+    :param degree: Highest degree (>= 1)
+    :return: ``(*x.shape, degree)``
+    """
+    polynomials = [th.ones_like(x), x]
+    for k in range(1, degree):
+        polynomials.append(((2 * k + 1) * x * polynomials[k] - k * polynomials[k - 1]) / (k + 1))
+    return th.stack(polynomials[1 : degree + 1], dim=-1)
+
+
+def _mlp(input_dim: int, output_dim: int, net_arch: list[int], activation_fn: type[nn.Module]) -> nn.Sequential:
+    return nn.Sequential(*create_mlp(input_dim, output_dim, net_arch, activation_fn))
+
+
+def _centre(selected: th.Tensor, at_centres: th.Tensor, aggregation: Aggregation) -> th.Tensor:
+    """``A(s, a) - mean_z A(s, z)`` (Eq. 13) or ``- max_z A(s, z)`` (Eq. 11), summed over action branches.
+
+    :param selected: ``(batch, branches)`` advantage of the action in each branch
+    :param at_centres: ``(batch, branches, n_intervals)`` advantages of the interval centres
+    :return: ``(batch, 1)``
+    """
+    baseline = at_centres.mean(dim=-1) if aggregation == "mean" else at_centres.amax(dim=-1)
+    return (selected - baseline).sum(dim=1, keepdim=True)
+
+
+class StateValueIntervalNetwork(nn.Module):
+    """
+    ``critic_design="state_value"``: ``V(s)`` from the state features only (its own MLP), and the paper's
+    interval advantages from a trunk over ``[features, action]``.
+
+    :param features_dim: Number of state features
+    :param action_dim: Number of action dimensions (advantage branches)
+    :param n_intervals: Number of intervals per action dimension
+    :param net_arch: Hidden layers of the advantage trunk over ``[features, action]`` and of the value network
+    :param value_net_arch: Further hidden layers of the value network
+    :param advantage_net_arch: Further hidden layers of the advantage stream
+    :param activation_fn: Activation function
+    """
+
+    def __init__(
+        self,
+        features_dim: int,
+        action_dim: int,
+        n_intervals: int,
+        net_arch: list[int],
+        value_net_arch: list[int],
+        advantage_net_arch: list[int],
+        activation_fn: type[nn.Module],
+    ):
+        super().__init__()
+        self.action_dim = action_dim
+        self.n_intervals = n_intervals
+        self.value_net = _mlp(features_dim, 1, [*net_arch, *value_net_arch], activation_fn)
+        self.advantage_net = _mlp(
+            features_dim + action_dim, action_dim * n_intervals, [*net_arch, *advantage_net_arch], activation_fn
+        )
+
+    def forward(self, features: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """
+        :param features: ``(batch, features_dim)``
+        :param actions: Scaled actions ``(batch, action_dim)``
+        :return: value ``(batch, 1)`` and interval advantages ``(batch, action_dim, n_intervals)``
+        """
+        advantages = self.advantage_net(th.cat([features, actions], dim=1))
+        return self.value_net(features), advantages.view(-1, self.action_dim, self.n_intervals)
+
+    def q_value(
+        self,
+        features: th.Tensor,
+        actions: th.Tensor,
+        partition: UniformIntervalPartition,
+        aggregation: Aggregation,
+        interpolation: Interpolation,
+    ) -> th.Tensor:
+        """``Q(s, a)`` (Eq. 11 or 13-14) with the state value. Parameters as in :meth:`forward`, plus the partition
+        and the aggregation and interpolation modes. :return: ``(batch, 1)``"""
+        value, advantages = self(features, actions)
+        return aggregate(value, advantages, partition.centred_weights(actions, advantages, aggregation, interpolation))
+
+
+class LegendreAdvantageNetwork(nn.Module):
+    """
+    ``critic_design="legendre"``: a state trunk with a value head and a head of Legendre coefficients, one set of
+    ``basis_degree`` coefficients per action dimension; ``A(s, a_d) = sum_k c_{d,k}(s) P_k(a_d)``.
+
+    The interval advantages of the paper are this polynomial at the interval centres, so the mean (or max) over
+    intervals of Eq. 13-14 (Eq. 11) is taken over the centres; the advantage of the action is the polynomial at the
+    action itself (no interpolation is needed).
+
+    :param features_dim: Number of state features
+    :param action_dim: Number of action dimensions (advantage branches)
+    :param n_intervals: Number of intervals per action dimension (centres of the baseline)
+    :param net_arch: Hidden layers of the state trunk
+    :param value_net_arch: Hidden layers of the value head
+    :param advantage_net_arch: Hidden layers of the coefficient head
+    :param activation_fn: Activation function
+    :param basis_degree: Degree of the polynomial in the action
+    """
+
+    basis_at_centres: th.Tensor
+
+    def __init__(
+        self,
+        features_dim: int,
+        action_dim: int,
+        n_intervals: int,
+        net_arch: list[int],
+        value_net_arch: list[int],
+        advantage_net_arch: list[int],
+        activation_fn: type[nn.Module],
+        basis_degree: int,
+    ):
+        super().__init__()
+        self.action_dim = action_dim
+        self.n_intervals = n_intervals
+        self.basis_degree = basis_degree
+        self.trunk = nn.Sequential(*create_mlp(features_dim, -1, net_arch, activation_fn))
+        trunk_dim = net_arch[-1] if net_arch else features_dim
+        self.value_head = _mlp(trunk_dim, 1, value_net_arch, activation_fn)
+        self.coefficient_head = _mlp(trunk_dim, action_dim * basis_degree, advantage_net_arch, activation_fn)
+        centres = UniformIntervalPartition(n_intervals).centres
+        self.register_buffer("basis_at_centres", legendre_basis(centres, basis_degree).T.contiguous(), persistent=False)
+
+    def _heads(self, features: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        hidden = self.trunk(features)
+        coefficients = self.coefficient_head(hidden).view(-1, self.action_dim, self.basis_degree)
+        return self.value_head(hidden), coefficients
+
+    def forward(self, features: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """
+        :param features: ``(batch, features_dim)``
+        :param actions: Scaled actions ``(batch, action_dim)`` (unused: the streams read the state only)
+        :return: value ``(batch, 1)`` and the advantages of the interval centres ``(batch, action_dim, n_intervals)``
+        """
+        value, coefficients = self._heads(features)
+        return value, coefficients @ self.basis_at_centres
+
+    def q_value(
+        self,
+        features: th.Tensor,
+        actions: th.Tensor,
+        partition: UniformIntervalPartition,
+        aggregation: Aggregation,
+        interpolation: Interpolation,
+    ) -> th.Tensor:
+        """``Q(s, a) = V(s) + A(s, a) - mean_z A(s, centre_z)`` (``max`` for Eq. 11). Parameters as in
+        :meth:`forward`; ``partition`` and ``interpolation`` are not used. :return: ``(batch, 1)``"""
+        value, coefficients = self._heads(features)
+        selected = (coefficients * legendre_basis(actions.clamp(-1.0, 1.0), self.basis_degree)).sum(dim=-1)
+        if aggregation == "mean":
+            # The mean over the centres is linear in the coefficients: no need to evaluate every centre.
+            baseline = coefficients @ self.basis_at_centres.mean(dim=1)
+            return value + (selected - baseline).sum(dim=1, keepdim=True)
+        return value + _centre(selected, coefficients @ self.basis_at_centres, aggregation)
+
+
+class ActionAdvantageNetwork(nn.Module):
+    """
+    ``critic_design="action_network"``: ``V(s)`` from the state features only, and an advantage network over
+    ``[features, action]`` with one output, evaluated at the action and at the interval centres;
+    ``Q = V(s) + A(s, a) - mean_z A(s, centre_z)``.
+
+    With several action dimensions the centres are ``n_intervals`` points of a fixed Latin hypercube over the
+    interval centres (each dimension takes every centre once), so the baseline is a stratified estimate of the
+    mean of ``A`` over the action box.
+
+    :param features_dim: Number of state features
+    :param action_dim: Number of action dimensions
+    :param n_intervals: Number of intervals per action dimension (centres of the baseline)
+    :param net_arch: Hidden layers of the advantage network and of the value network
+    :param value_net_arch: Further hidden layers of the value network
+    :param advantage_net_arch: Further hidden layers of the advantage network
+    :param activation_fn: Activation function
+    """
+
+    centre_actions: th.Tensor
+
+    def __init__(
+        self,
+        features_dim: int,
+        action_dim: int,
+        n_intervals: int,
+        net_arch: list[int],
+        value_net_arch: list[int],
+        advantage_net_arch: list[int],
+        activation_fn: type[nn.Module],
+    ):
+        super().__init__()
+        self.action_dim = action_dim
+        self.n_intervals = n_intervals
+        self.value_net = _mlp(features_dim, 1, [*net_arch, *value_net_arch], activation_fn)
+        self.advantage_net = _mlp(features_dim + action_dim, 1, [*net_arch, *advantage_net_arch], activation_fn)
+        centres = UniformIntervalPartition(n_intervals).centres
+        # A fixed Latin hypercube: dimension d visits the centres in the order of a permutation drawn once.
+        generator = th.Generator().manual_seed(0)
+        columns = [centres] + [centres[th.randperm(n_intervals, generator=generator)] for _ in range(action_dim - 1)]
+        self.register_buffer("centre_actions", th.stack(columns, dim=1), persistent=False)
+
+    def _advantage_at_centres(self, features: th.Tensor) -> th.Tensor:
+        batch, n = features.shape[0], self.n_intervals
+        tiled = features.unsqueeze(1).expand(batch, n, features.shape[1])
+        centres = self.centre_actions.unsqueeze(0).expand(batch, n, self.action_dim)
+        return self.advantage_net(th.cat([tiled, centres], dim=2)).view(batch, 1, n)
+
+    def forward(self, features: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """
+        :param features: ``(batch, features_dim)``
+        :param actions: Scaled actions ``(batch, action_dim)`` (unused: see :meth:`q_value`)
+        :return: value ``(batch, 1)`` and the advantages of the interval centres ``(batch, 1, n_intervals)``
+            (one branch for the whole action)
+        """
+        return self.value_net(features), self._advantage_at_centres(features)
+
+    def q_value(
+        self,
+        features: th.Tensor,
+        actions: th.Tensor,
+        partition: UniformIntervalPartition,
+        aggregation: Aggregation,
+        interpolation: Interpolation,
+    ) -> th.Tensor:
+        """``Q(s, a) = V(s) + A(s, a) - mean_z A(s, centre_z)`` (``max`` for Eq. 11). Parameters as in
+        :meth:`forward`; ``partition`` and ``interpolation`` are not used. :return: ``(batch, 1)``"""
+        selected = self.advantage_net(th.cat([features, actions], dim=1))
+        return self.value_net(features) + _centre(selected, self._advantage_at_centres(features), aggregation)
