@@ -1,7 +1,9 @@
 """Registration of the sb3-adc environments under the Gymnasium namespace ``sb3_adc/``.
 
 Entry points are given as ``"module:callable"`` strings, so registering imports nothing heavy;
-Gymnasium imports the module (and with it pybullet or highway-env) on ``gym.make``.
+Gymnasium imports the module (and with it pybullet or highway-env) on ``gym.make``. Importing
+``sb3_adc_envs`` registers the ids, so ``gym.make("sb3_adc_envs:sb3_adc/LidarObstacleCourse-v1")`` works in a
+fresh process without importing torch or Stable-Baselines3.
 """
 
 from __future__ import annotations
@@ -11,6 +13,11 @@ from typing import Any
 import gymnasium as gym
 
 NAMESPACE = "sb3_adc"
+
+#: Make kwargs of ``sb3_adc/LidarObstacleCourse-v1``: a new procedural layout at every reset, from the training
+#: layout seeds, seen through :data:`V1_N_RAYS` rays (docs/envs/lidar_course.rst says why that many).
+V1_N_RAYS = 16
+_LIDAR_V1_KWARGS: dict[str, Any] = {"course": "procedural", "n_rays": V1_N_RAYS}
 
 #: Every environment the package registers: id -> keyword arguments of :func:`gymnasium.register`.
 ENV_SPECS: dict[str, dict[str, Any]] = {
@@ -24,12 +31,25 @@ ENV_SPECS: dict[str, dict[str, Any]] = {
         "max_episode_steps": 500,
     },
     f"{NAMESPACE}/LidarObstacleCourseNoisy-v0": {
-        "entry_point": "sb3_adc_envs.lidar_course.noisy:make_noisy_lidar_course",
+        "entry_point": "sb3_adc_envs.lidar_course.noisy:NoisyLidarObstacleCourse",
         "max_episode_steps": 500,
         "kwargs": {"noise_low": -0.1, "noise_high": 0.1},
     },
+    f"{NAMESPACE}/LidarObstacleCourse-v1": {
+        "entry_point": "sb3_adc_envs.lidar_course.env:LidarObstacleCourseEnv",
+        "max_episode_steps": 500,
+        "kwargs": _LIDAR_V1_KWARGS,
+    },
+    f"{NAMESPACE}/LidarObstacleCourseNoisy-v1": {
+        "entry_point": "sb3_adc_envs.lidar_course.noisy:NoisyLidarObstacleCourse",
+        "max_episode_steps": 500,
+        "kwargs": {"noise_low": -0.1, "noise_high": 0.1, **_LIDAR_V1_KWARGS},
+    },
+    # 200 steps: highway-env ends an episode itself after `duration` (40 s) at `policy_frequency` (5 Hz); a config
+    # with another duration or frequency needs `max_episode_steps=` at `gym.make` to match.
     f"{NAMESPACE}/HighwayObstacle-v0": {
         "entry_point": "sb3_adc_envs.highway_obstacle:HighwayObstacleEnv",
+        "max_episode_steps": 200,
     },
 }
 

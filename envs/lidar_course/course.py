@@ -11,11 +11,19 @@ A course is a small YAML (``.yml``/``.yaml``) or JSON (``.json``) mapping::
       centerline: [[0, 0], [8, 0], [8, 6], [0, 6]]   # the last point joins the first
     walls:                          # ... and/or wall polylines (wall centre lines) [m]
       - [[-1, -1], [9, -1], [9, 7], [-1, 7], [-1, -1]]   # closed: the last point repeats the first
+    obstacles:                      # optional: bodies in the free space
+      - {shape: box, position: [6.0, 0.3], size: [0.4, 0.6], yaw_deg: 30}
+      - {shape: cylinder, position: [8.0, 3.0], radius: 0.15}
+      - {shape: wall, position: [4.0, 6.4], length: 0.8, yaw_deg: 90}   # a wall stub, wall_thickness thick
     start: {x: 4.0, y: 0.0, heading_deg: 0.0}
 
 A course needs ``start`` and at least one of ``corridor`` and ``walls``. The robot must not be able to
 leave it: the corridor is a closed loop and the start pose must lie inside it, and a course made of
-``walls`` only needs a closed polyline around the start pose. Every error names the file and the field.
+``walls`` only needs a closed polyline around the start pose. An obstacle's centre lies in the free space,
+at least :data:`OBSTACLE_START_CLEARANCE` from the start pose; a robot must still be able to drive round a
+corridor (checked with the robot's radius by :meth:`Course.check_robot_fits`). Every error names the file
+and the field. YAML files are read as YAML 1.2 reads numbers (``-1e300`` is a number, not a string), without
+aliases, and at most :data:`MAX_COURSE_FILE_BYTES` long.
 """
 
 from __future__ import annotations
@@ -23,7 +31,8 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +40,7 @@ import numpy as np
 import yaml
 
 from sb3_adc_envs.lidar_course import geometry
+from sb3_adc_envs.lidar_course.passability import blocked_corridor_point
 
 #: Folder of the courses shipped with the package.
 COURSES_DIR = Path(__file__).resolve().parent.parent / "courses"
@@ -39,7 +49,21 @@ COURSE_SUFFIXES = (".yml", ".yaml", ".json")
 #: Wall thickness when a course file does not give one [m].
 DEFAULT_WALL_THICKNESS = 0.1
 
-_TOP_LEVEL_KEYS = ("name", "description", "wall_thickness", "corridor", "walls", "start")
+#: Largest course file accepted [bytes]: a course is a few hundred bytes, and a bound keeps a damaged or
+#: hostile file from exhausting memory.
+MAX_COURSE_FILE_BYTES = 1_000_000
+#: Largest absolute coordinate or size accepted [m].
+MAX_COORDINATE = 10_000.0
+#: Obstacles must leave at least this distance free around the start position [m].
+OBSTACLE_START_CLEARANCE = 1.0
+#: Shapes of obstacles, and the keys of each.
+OBSTACLE_KEYS: dict[str, tuple[str, ...]] = {
+    "box": ("shape", "position", "size", "yaw_deg"),
+    "cylinder": ("shape", "position", "radius"),
+    "wall": ("shape", "position", "length", "thickness", "yaw_deg"),
+}
+
+_TOP_LEVEL_KEYS = ("name", "description", "wall_thickness", "corridor", "walls", "obstacles", "start")
 _CORRIDOR_KEYS = ("width", "centerline", "corner_radius")
 _START_KEYS = ("x", "y", "heading_deg")
 # Spacing of the centre-line samples used to check that a corridor does not overlap itself [m].
@@ -92,6 +116,53 @@ class Corridor:
 
 
 @dataclass(frozen=True)
+class Obstacle:
+    """
+    A static body in the free space of a course, as high as the walls.
+
+    :param shape: ``"box"``, ``"cylinder"`` or ``"wall"`` (a wall stub: a box ``thickness`` thick)
+    :param x: Position of the centre [m]
+    :param y: Position of the centre [m]
+    :param length: Extent along the obstacle's own x axis [m] (a cylinder's diameter)
+    :param width: Extent along its y axis [m] (a cylinder's diameter, a wall stub's thickness)
+    :param yaw: Orientation [rad], counter-clockwise from the course's x axis (0 for a cylinder)
+    """
+
+    shape: str
+    x: float
+    y: float
+    length: float
+    width: float
+    yaw: float = 0.0
+
+    @property
+    def bounding_radius(self) -> float:
+        """Radius of the smallest circle around the centre that holds the obstacle [m]."""
+        if self.shape == "cylinder":
+            return self.length / 2.0
+        return math.hypot(self.length, self.width) / 2.0
+
+    def distance(self, x: float, y: float) -> float:
+        """Distance from a point to the obstacle's surface [m] (0 inside it)."""
+        dx, dy = x - self.x, y - self.y
+        if self.shape == "cylinder":
+            return max(math.hypot(dx, dy) - self.length / 2.0, 0.0)
+        cos_yaw, sin_yaw = math.cos(self.yaw), math.sin(self.yaw)
+        local_x = abs(cos_yaw * dx + sin_yaw * dy) - self.length / 2.0
+        local_y = abs(-sin_yaw * dx + cos_yaw * dy) - self.width / 2.0
+        return math.hypot(max(local_x, 0.0), max(local_y, 0.0))
+
+    def footprint(self, n_arc: int = 24) -> np.ndarray:
+        """``(n, 2)`` vertices of the outline seen from above (a cylinder's as a ``n_arc``-gon) [m]."""
+        if self.shape == "cylinder":
+            angles = np.linspace(0.0, 2.0 * math.pi, n_arc, endpoint=False)
+            return np.column_stack([self.x + self.length / 2.0 * np.cos(angles), self.y + self.length / 2.0 * np.sin(angles)])
+        half = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]]) * [self.length / 2.0, self.width / 2.0]
+        cos_yaw, sin_yaw = math.cos(self.yaw), math.sin(self.yaw)
+        return half @ np.array([[cos_yaw, sin_yaw], [-sin_yaw, cos_yaw]]) + [self.x, self.y]
+
+
+@dataclass(frozen=True)
 class Course:
     """
     A validated course: wall segments and a start pose.
@@ -103,6 +174,7 @@ class Course:
     :param start: Start pose of the robot
     :param corridor: The corridor the walls were built around, if the course has one
     :param description: Free text
+    :param obstacles: Static bodies in the free space (see :class:`Obstacle`)
     """
 
     name: str
@@ -112,6 +184,7 @@ class Course:
     start: StartPose
     corridor: Corridor | None = None
     description: str = ""
+    obstacles: tuple[Obstacle, ...] = field(default=())
 
     @property
     def bounds(self) -> tuple[float, float, float, float]:
@@ -122,16 +195,21 @@ class Course:
         return float(xs.min()) - half, float(ys.min()) - half, float(xs.max()) + half, float(ys.max()) + half
 
     def clearance(self, x: float, y: float) -> float:
-        """Distance from a point to the nearest wall face [m] (negative inside a wall)."""
+        """Distance from a point to the nearest wall face or obstacle [m] (negative inside a wall, 0 in an obstacle)."""
         _, distance = geometry.closest_segment(np.array([x, y]), self.walls)
-        return distance - self.wall_thickness / 2.0
+        clearance = distance - self.wall_thickness / 2.0
+        for obstacle in self.obstacles:
+            clearance = min(clearance, obstacle.distance(x, y))
+        return clearance
 
     def check_robot_fits(self, robot_radius: float) -> None:
         """
-        Check that a round robot of the given radius fits the corridor and does not start on a wall.
+        Check that a round robot of the given radius fits the corridor, does not start on a wall or an obstacle,
+        and can drive round a corridor past its obstacles
+        (:func:`~sb3_adc_envs.lidar_course.passability.blocked_corridor_point`).
 
         :param robot_radius: Radius of the robot [m]
-        :raises CourseError: naming ``corridor.width`` or ``start``
+        :raises CourseError: naming ``corridor.width``, ``start`` or ``obstacles``
         """
         if self.corridor is not None and self.corridor.width <= 2.0 * robot_radius:
             raise CourseError(
@@ -146,9 +224,19 @@ class Course:
                 self.source,
                 "start",
                 f"the start pose ({self.start.x:g}, {self.start.y:g}) overlaps a wall: a robot of radius "
-                f"{robot_radius:g} m there would be {clearance:.3g} m from the nearest wall face (needs more than "
+                f"{robot_radius:g} m there would be {clearance:.3g} m from the nearest wall face or obstacle (needs more than "
                 f"{robot_radius:g} m).",
             )
+        if self.corridor is not None and self.obstacles:
+            blocked = blocked_corridor_point(self, robot_radius)
+            if blocked is not None:
+                raise CourseError(
+                    self.source,
+                    "obstacles",
+                    f"the obstacles leave no way round the corridor for a robot of radius {robot_radius:g} m: it is "
+                    f"blocked near ({blocked[0]:.3g}, {blocked[1]:.3g}). Leave a gap wider than {2.0 * robot_radius:g} m "
+                    "(the robot's diameter) beside every obstacle.",
+                )
 
 
 def shipped_courses() -> list[str]:
@@ -188,12 +276,40 @@ def load_course(course: str | os.PathLike[str]) -> Course:
     source = str(path)
     if path.suffix not in COURSE_SUFFIXES:
         raise CourseError(source, "<file>", f"unknown file type {path.suffix!r}; accepted: {', '.join(COURSE_SUFFIXES)}.")
+    size = path.stat().st_size
+    if size > MAX_COURSE_FILE_BYTES:
+        raise CourseError(
+            source, "<file>", f"is {size:,} bytes long; a course file may have at most {MAX_COURSE_FILE_BYTES:,}."
+        )
     text = path.read_text(encoding="utf-8")
     try:
-        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
-    except (json.JSONDecodeError, yaml.YAMLError) as error:
-        raise CourseError(source, "<file>", f"cannot be parsed: {error}") from error
+        data = json.loads(text) if path.suffix == ".json" else _load_yaml(text)
+    except (json.JSONDecodeError, yaml.YAMLError, RecursionError) as error:
+        raise CourseError(source, "<file>", f"cannot be parsed: {str(error)[:500]}") from None
     return course_from_dict(data, source=source, default_name=path.stem)
+
+
+class _CourseYamlLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, reading floats as YAML 1.2 does: ``1e3`` and ``-1e300`` are numbers, not strings."""
+
+
+# PyYAML implements YAML 1.1, where a float needs a dot and a signed exponent (``1.0e+3``); YAML 1.2 and JSON
+# accept ``1e3``. The resolver below adds the exponent forms without a dot; every other scalar resolves as before.
+_CourseYamlLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
+
+
+def _load_yaml(text: str) -> Any:
+    # Aliases are refused before anything is built: a few hundred bytes of nested aliases expand to gigabytes.
+    for event in yaml.parse(text, Loader=_CourseYamlLoader):
+        if isinstance(event, yaml.AliasEvent):
+            mark = event.start_mark
+            line = f" (line {mark.line + 1})" if mark is not None else ""
+            raise yaml.YAMLError(f"YAML aliases (*name) are not allowed in course files{line}; write the values out.")
+    return yaml.load(text, Loader=_CourseYamlLoader)
 
 
 def course_from_dict(data: Any, source: str = "<course>", default_name: str = "course") -> Course:
@@ -248,6 +364,11 @@ def course_from_dict(data: Any, source: str = "<course>", default_name: str = "c
             "open geometry: no closed wall polyline encloses the start pose, so the robot could leave the course. "
             "Close a polyline around the start by repeating its first point at its end.",
         )
+    obstacles = _parse_obstacles(source, data.get("obstacles", []), wall_thickness)
+    for i, obstacle in enumerate(obstacles):
+        _check_obstacle_placement(
+            source, f"obstacles[{i}]", obstacle, walls, wall_thickness, corridor, closed_polylines, start
+        )
     return Course(
         name=name,
         source=source,
@@ -256,6 +377,7 @@ def course_from_dict(data: Any, source: str = "<course>", default_name: str = "c
         start=start,
         corridor=corridor,
         description=description,
+        obstacles=tuple(obstacles),
     )
 
 
@@ -267,10 +389,17 @@ def _check_keys(source: str, field: str, mapping: dict[Any, Any], accepted: tupl
 
 def _number(source: str, field: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise CourseError(source, field, f"must be a number, got {value!r}.")
+        raise CourseError(source, field, f"must be a number, got {_short_repr(value)}.")
     if not math.isfinite(value):
         raise CourseError(source, field, f"must be finite, got {value!r}.")
+    if abs(value) > MAX_COORDINATE:
+        raise CourseError(source, field, f"out of range: {value!r}; coordinates and sizes lie within ±{MAX_COORDINATE:g} m.")
     return float(value)
+
+
+def _short_repr(value: Any, limit: int = 200) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 
 def _positive(source: str, field: str, value: Any) -> float:
@@ -282,11 +411,11 @@ def _positive(source: str, field: str, value: Any) -> float:
 
 def _points(source: str, field: str, value: Any, min_points: int) -> np.ndarray:
     if not isinstance(value, list) or len(value) < min_points:
-        raise CourseError(source, field, f"must be a list of at least {min_points} [x, y] points, got {value!r}.")
+        raise CourseError(source, field, f"must be a list of at least {min_points} [x, y] points, got {_short_repr(value)}.")
     points = np.empty((len(value), 2))
     for i, point in enumerate(value):
         if not isinstance(point, list) or len(point) != 2:
-            raise CourseError(source, f"{field}[{i}]", f"must be a point [x, y], got {point!r}.")
+            raise CourseError(source, f"{field}[{i}]", f"must be a point [x, y], got {_short_repr(point)}.")
         points[i] = [_number(source, f"{field}[{i}][{j}]", coordinate) for j, coordinate in enumerate(point)]
     steps = np.hypot(*np.diff(points, axis=0).T)
     if np.any(steps <= 1e-9):
@@ -297,7 +426,9 @@ def _points(source: str, field: str, value: Any, min_points: int) -> np.ndarray:
 
 def _parse_start(source: str, value: Any) -> StartPose:
     if not isinstance(value, dict):
-        raise CourseError(source, "start", f"must be a mapping {{x: ..., y: ..., heading_deg: ...}}, got {value!r}.")
+        raise CourseError(
+            source, "start", f"must be a mapping {{x: ..., y: ..., heading_deg: ...}}, got {_short_repr(value)}."
+        )
     _check_keys(source, "start", value, _START_KEYS)
     for key in _START_KEYS:
         if key not in value:
@@ -311,7 +442,9 @@ def _parse_start(source: str, value: Any) -> StartPose:
 
 def _parse_corridor(source: str, value: Any, wall_thickness: float) -> Corridor:
     if not isinstance(value, dict):
-        raise CourseError(source, "corridor", f"must be a mapping with keys {', '.join(_CORRIDOR_KEYS)}, got {value!r}.")
+        raise CourseError(
+            source, "corridor", f"must be a mapping with keys {', '.join(_CORRIDOR_KEYS)}, got {_short_repr(value)}."
+        )
     _check_keys(source, "corridor", value, _CORRIDOR_KEYS)
     for key in ("width", "centerline"):
         if key not in value:
@@ -364,5 +497,90 @@ def _check_corridor_does_not_overlap(source: str, corridor: Corridor, wall_thick
 
 def _parse_walls(source: str, value: Any) -> list[np.ndarray]:
     if not isinstance(value, list) or not value:
-        raise CourseError(source, "walls", f"must be a non-empty list of polylines [[x, y], [x, y], ...], got {value!r}.")
+        raise CourseError(
+            source, "walls", f"must be a non-empty list of polylines [[x, y], [x, y], ...], got {_short_repr(value)}."
+        )
     return [_points(source, f"walls[{i}]", polyline, min_points=2) for i, polyline in enumerate(value)]
+
+
+def _parse_obstacles(source: str, value: Any, wall_thickness: float) -> list[Obstacle]:
+    if not isinstance(value, list):
+        raise CourseError(
+            source,
+            "obstacles",
+            f"must be a list of obstacles {{shape: ..., position: [x, y], ...}}, got {_short_repr(value)}.",
+        )
+    return [_parse_obstacle(source, f"obstacles[{i}]", item, wall_thickness) for i, item in enumerate(value)]
+
+
+def _parse_obstacle(source: str, field: str, value: Any, wall_thickness: float) -> Obstacle:
+    shapes = ", ".join(OBSTACLE_KEYS)
+    if not isinstance(value, dict):
+        raise CourseError(
+            source, field, f"must be a mapping {{shape: {shapes}, position: [x, y], ...}}, got {_short_repr(value)}."
+        )
+    shape = value.get("shape")
+    if not isinstance(shape, str) or shape not in OBSTACLE_KEYS:
+        raise CourseError(source, f"{field}.shape", f"must be one of {shapes}, got {_short_repr(shape)}.")
+    _check_keys(source, field, value, OBSTACLE_KEYS[shape])
+    required = {"box": ("position", "size"), "cylinder": ("position", "radius"), "wall": ("position", "length")}[shape]
+    for key in required:
+        if key not in value:
+            raise CourseError(source, f"{field}.{key}", f"missing; a {shape} needs {' and '.join(required)}.")
+    position = value["position"]
+    if not isinstance(position, list) or len(position) != 2:
+        raise CourseError(source, f"{field}.position", f"must be a point [x, y], got {_short_repr(position)}.")
+    x, y = (_number(source, f"{field}.position[{j}]", coordinate) for j, coordinate in enumerate(position))
+    yaw = math.radians(_number(source, f"{field}.yaw_deg", value.get("yaw_deg", 0.0)))
+    if shape == "cylinder":
+        diameter = 2.0 * _positive(source, f"{field}.radius", value["radius"])
+        return Obstacle("cylinder", x, y, diameter, diameter)
+    if shape == "wall":
+        length = _positive(source, f"{field}.length", value["length"])
+        thickness = _positive(source, f"{field}.thickness", value.get("thickness", wall_thickness))
+        return Obstacle("wall", x, y, length, thickness, yaw)
+    size = value["size"]
+    if not isinstance(size, list) or len(size) != 2:
+        raise CourseError(source, f"{field}.size", f"must be [length, width] [m], got {_short_repr(size)}.")
+    length, width = (_positive(source, f"{field}.size[{j}]", extent) for j, extent in enumerate(size))
+    return Obstacle("box", x, y, length, width, yaw)
+
+
+def _check_obstacle_placement(
+    source: str,
+    field: str,
+    obstacle: Obstacle,
+    walls: np.ndarray,
+    wall_thickness: float,
+    corridor: Corridor | None,
+    closed_polylines: list[np.ndarray],
+    start: StartPose,
+) -> None:
+    centre = np.array([obstacle.x, obstacle.y])
+    start_point = np.array([start.x, start.y])
+    if corridor is not None:
+        _, distance = geometry.closest_segment(centre, geometry.polyline_segments(corridor.centerline, closed=True))
+        inside = distance <= corridor.width / 2.0
+    else:
+        # Inside the same region as the start: enclosed by the same closed polylines (an island is a hole).
+        inside = all(
+            geometry.point_in_polygon(centre, polyline) == geometry.point_in_polygon(start_point, polyline)
+            for polyline in closed_polylines
+        )
+    _, wall_distance = geometry.closest_segment(centre, walls)
+    if not inside or wall_distance <= wall_thickness / 2.0:
+        where = "outside the corridor" if corridor is not None and not inside else "outside the free space"
+        raise CourseError(
+            source,
+            f"{field}.position",
+            f"the {obstacle.shape}'s centre ({obstacle.x:g}, {obstacle.y:g}) is {where}; an obstacle's centre must lie "
+            "in the free space the robot drives in (not in a wall).",
+        )
+    gap = obstacle.distance(start.x, start.y)
+    if gap < OBSTACLE_START_CLEARANCE:
+        raise CourseError(
+            source,
+            field,
+            f"the {obstacle.shape} at ({obstacle.x:g}, {obstacle.y:g}) is {gap:.3g} m from the start position "
+            f"({start.x:g}, {start.y:g}); obstacles must leave {OBSTACLE_START_CLEARANCE:g} m free around the start.",
+        )

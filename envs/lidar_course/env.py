@@ -1,7 +1,8 @@
-"""``sb3_adc/LidarObstacleCourse-v0``: a lidar robot drives through a walled course (ADC paper, Section 5.1.2)."""
+"""``sb3_adc/LidarObstacleCourse-v0`` and ``-v1``: a lidar robot drives through a walled course (ADC paper, Section 5.1.2)."""
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from typing import Any, SupportsFloat
@@ -11,17 +12,33 @@ import numpy as np
 from gymnasium import spaces
 
 from sb3_adc_envs.lidar_course.course import Course, load_course
+from sb3_adc_envs.lidar_course.geometry import LoopProgress
+from sb3_adc_envs.lidar_course.procedural import CourseGenerator
 from sb3_adc_envs.lidar_course.rendering import TopDownRenderer
 from sb3_adc_envs.lidar_course.simulation import CourseSimulation
+
+#: ``course=PROCEDURAL``: a new procedural layout at every reset (see :mod:`~sb3_adc_envs.lidar_course.procedural`).
+PROCEDURAL = "procedural"
+#: Layout seeds ``[start, stop)`` of procedural training courses (``sb3_adc/LidarObstacleCourse-v1``'s default).
+TRAIN_LAYOUT_SEEDS = (0, 1_000_000)
+#: Held-out layout seeds ``[start, stop)`` for evaluation, disjoint from :data:`TRAIN_LAYOUT_SEEDS`.
+TEST_LAYOUT_SEEDS = (1_000_000, 1_000_100)
 
 # Initial capacity of the path buffer (positions); it doubles when full.
 _PATH_CAPACITY = 512
 _TWO_PI = 2.0 * math.pi
 
 
+@functools.lru_cache(maxsize=256)
+def _procedural_course(generator: CourseGenerator, layout_seed: int, robot_radius: float) -> Course:
+    # Courses are immutable: an evaluation that comes back to a layout seed reuses it.
+    return generator.generate(layout_seed, robot_radius)
+
+
 class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
     """
-    A round robot drives forward at constant speed through a walled course and steers to avoid the walls.
+    A round robot drives forward at constant speed through a walled course and steers to avoid the walls and
+    obstacles.
 
     The navigation task of the Actor-Dueling-Critic paper (Section 5.1.2, Figure 6), simulated with
     pybullet (``p.DIRECT``, one physics client per environment; see
@@ -29,20 +46,28 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
 
     - **Action**: ``Box(-1, 1, (1,))``, the change of heading during the step, scaled to
       ``[-max_steer_deg, +max_steer_deg]`` (the paper's ±6°). Positive turns left (counter-clockwise).
-    - **Observation**: ``Box(0, 1, (n_rays,))``, the lidar's distances to the walls divided by
-      ``max_range`` (1 where a ray sees no wall). The rays are spread evenly over ``fov_deg`` around the
+    - **Observation**: ``Box(0, 1, (n_rays,))``, the lidar's distances to the walls and obstacles divided by
+      ``max_range`` (1 where a ray sees nothing). The rays are spread evenly over ``fov_deg`` around the
       heading, the first one straight ahead when ``fov_deg`` is 360.
     - **Reward**: ``step_reward`` (+0.001) for a step without collision; ``collision_reward`` (-1) when the
-      robot touches a wall, which terminates the episode.
+      robot touches a wall or an obstacle, which terminates the episode.
     - **Episode**: starts at the course's start pose (optionally jittered); registered with a
       500-step time limit (``gym.make`` adds the ``TimeLimit`` wrapper; the class alone never truncates).
-    - **Info**: ``{"collision": bool}``.
+    - **Info**: ``{"collision": bool, "is_success": bool, "distance": float, "course": str}``: ``is_success`` is
+      ``not collision``, so at the episode's last step it tells whether the robot drove until the time limit
+      without a collision (what SB3's ``EvalCallback`` and the RL Zoo log as the success rate); ``distance`` is
+      the distance driven along the course since the reset [m]: along the corridor's centre line (backwards
+      counts negative) when the course has one, else the length of the path.
 
-    ``reset(options={"start_pose": (x, y, heading_deg)})`` starts that episode elsewhere (no jitter).
+    With ``course="procedural"`` every reset draws a new layout
+    (:class:`~sb3_adc_envs.lidar_course.procedural.CourseGenerator`): its layout seed is drawn uniformly from
+    ``layout_seeds`` with the environment's generator, so ``reset(seed=k)`` gives the same layout for the same
+    ``k``; ``reset(options={"layout_seed": n})`` picks one. ``reset(options={"start_pose": (x, y, heading_deg)})``
+    starts that episode elsewhere (no jitter).
 
     :param course: A shipped course name (``"training"``, ``"unseen_narrow"``, ... see
         :func:`~sb3_adc_envs.lidar_course.course.shipped_courses`), the path of a YAML/JSON course file,
-        or a :class:`~sb3_adc_envs.lidar_course.course.Course`
+        a :class:`~sb3_adc_envs.lidar_course.course.Course`, or ``"procedural"``
     :param n_rays: Number of lidar rays (8 in the paper)
     :param fov_deg: Angle the rays are spread over [deg], in ``(0, 360]``
     :param max_range: Length of the rays [m]; observations are distances divided by it
@@ -55,7 +80,12 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         start heading [deg]
     :param step_reward: Reward of a step without collision
     :param collision_reward: Reward of the step that hits a wall
-    :param render_mode: ``None`` or ``"rgb_array"`` (a top-down picture of walls, robot, rays and path)
+    :param render_mode: ``None`` or ``"rgb_array"`` (a top-down picture of walls, robot, rays and path);
+        ``gym.make(..., render_mode="human")`` shows these pictures in a window (Gymnasium's ``HumanRendering``)
+    :param layout_seeds: ``(start, stop)``: the layout seeds procedural courses are drawn from (default
+        :data:`TRAIN_LAYOUT_SEEDS`; :data:`TEST_LAYOUT_SEEDS` holds out 100 others for evaluation)
+    :param generator: The distribution of procedural courses (default
+        :class:`~sb3_adc_envs.lidar_course.procedural.CourseGenerator`)
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}  # noqa: RUF012 (Gymnasium's class attribute)
@@ -74,7 +104,14 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         step_reward: float = 0.001,
         collision_reward: float = -1.0,
         render_mode: str | None = None,
+        layout_seeds: tuple[int, int] = TRAIN_LAYOUT_SEEDS,
+        generator: CourseGenerator | None = None,
     ):
+        if not isinstance(course, (str, os.PathLike, Course)):
+            raise TypeError(
+                "`course` must be a shipped course name (str), the path of a course file (str or os.PathLike), a Course, "
+                f"or {PROCEDURAL!r}; got {course!r} of type {type(course).__name__}."
+            )
         if isinstance(n_rays, bool) or not isinstance(n_rays, (int, np.integer)) or n_rays < 1:
             raise ValueError(f"`n_rays` must be an integer >= 1, got {n_rays!r}.")
         if not 0.0 < fov_deg <= 360.0:
@@ -92,23 +129,45 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
                 raise ValueError(f"`{name}` must be a finite number >= 0, got {value!r}.")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"`render_mode` must be None or one of {self.metadata['render_modes']}, got {render_mode!r}.")
+        if (
+            not isinstance(layout_seeds, (tuple, list))
+            or len(layout_seeds) != 2
+            or any(isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) for seed in layout_seeds)
+            or not 0 <= layout_seeds[0] < layout_seeds[1]
+        ):
+            raise ValueError(
+                f"`layout_seeds` must be a pair (start, stop) of integers with 0 <= start < stop, got {layout_seeds!r}."
+            )
+        if generator is not None and not isinstance(generator, CourseGenerator):
+            raise TypeError(f"`generator` must be a CourseGenerator or None, got {generator!r}.")
 
-        self.course = course if isinstance(course, Course) else load_course(course)
-        self.course.check_robot_fits(robot_radius)
-        start = self.course.start
+        self.robot_radius = float(robot_radius)
+        #: Whether every reset draws a procedural layout.
+        self.procedural = isinstance(course, str) and course == PROCEDURAL
+        self.layout_seeds = (int(layout_seeds[0]), int(layout_seeds[1]))
+        self.generator = generator if generator is not None else CourseGenerator()
+        if self.procedural:
+            self.generator.check_robot_fits(self.robot_radius)
+            #: Layout seed of the current procedural course (``None`` for a fixed course).
+            self.layout_seed: int | None = self.layout_seeds[0]
+            self.course = _procedural_course(self.generator, self.layout_seed, self.robot_radius)
+            start_clearance = self.generator.width[0] / 2.0
+        else:
+            self.layout_seed = None
+            self.course = course if isinstance(course, Course) else load_course(course)
+            self.course.check_robot_fits(robot_radius)
+            start_clearance = self.course.clearance(self.course.start.x, self.course.start.y)
         jitter_reach = start_position_jitter * math.sqrt(2.0)
-        if self.course.clearance(start.x, start.y) - jitter_reach <= robot_radius:
+        if start_clearance - jitter_reach <= robot_radius:
             raise ValueError(
                 f"`start_position_jitter`={start_position_jitter!r} m can put the robot (radius {robot_radius} m) on a "
-                f"wall of course {self.course.name!r}: the start is {self.course.clearance(start.x, start.y):.3g} m "
-                "from the nearest wall face."
+                f"wall of course {self.course.name!r}: the start is {start_clearance:.3g} m from the nearest wall face."
             )
         self.n_rays = int(n_rays)
         self.fov = math.radians(fov_deg)
         self.max_range = float(max_range)
         self.speed = float(speed)
         self.max_steer = math.radians(max_steer_deg)
-        self.robot_radius = float(robot_radius)
         self.start_position_jitter = float(start_position_jitter)
         self.start_heading_jitter = math.radians(start_heading_jitter_deg)
         self.step_reward = float(step_reward)
@@ -121,10 +180,13 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         self.ray_angles = self._ray_angles(self.n_rays, self.fov)
         self._simulation = CourseSimulation(self.course, self.robot_radius, self.ray_angles, self.max_range)
         self._renderer: TopDownRenderer | None = None
+        self._progress = self._loop_progress(self.course)
 
         self._lidar = np.ones(self.n_rays, dtype=np.float32)
+        start = self.course.start
         self._x, self._y, self._heading = start.x, start.y, start.heading
         self._collided = False
+        self._distance = 0.0
         self._path = np.empty((_PATH_CAPACITY, 2))
         self._path_length = 0
 
@@ -136,6 +198,10 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
             return np.zeros(1)
         return np.linspace(-fov / 2.0, fov / 2.0, n_rays)
 
+    @staticmethod
+    def _loop_progress(course: Course) -> LoopProgress | None:
+        return LoopProgress(course.corridor.centerline) if course.corridor is not None else None
+
     @property
     def pose(self) -> tuple[float, float, float]:
         """``(x, y, heading)`` of the robot [m, m, rad]."""
@@ -146,18 +212,40 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         """``(n, 2)`` positions of the robot since the last reset (the start included) [m]."""
         return self._path[: self._path_length].copy()
 
+    @property
+    def simulation(self) -> CourseSimulation:
+        """The pybullet world of the current course (its body ids, and what each ray hit at the last step)."""
+        return self._simulation
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """
-        Put the robot back at the start pose (the course's, jittered if configured, or ``options["start_pose"]``).
+        Put the robot back at the start pose (the course's, jittered if configured, or ``options["start_pose"]``);
+        with ``course="procedural"``, on a new layout first.
 
-        :param seed: Seeds the start-pose jitter
-        :param options: ``{"start_pose": (x, y, heading_deg)}`` starts this episode there, without jitter
-        :return: the first observation and ``{"collision": False}``
-        :raises ValueError: if ``options["start_pose"]`` puts the robot on a wall
+        :param seed: Seeds the layout seed's draw and the start-pose jitter
+        :param options: ``{"start_pose": (x, y, heading_deg)}`` starts this episode there, without jitter;
+            ``{"layout_seed": n}`` (procedural courses) picks the layout instead of drawing it
+        :return: the first observation and the info of :meth:`step` (no collision, distance 0)
+        :raises ValueError: if ``options["start_pose"]`` puts the robot on a wall, or ``options["layout_seed"]`` is
+            given for a fixed course or is not an integer >= 0
         """
         super().reset(seed=seed)
+        options = options or {}
+        if self.procedural:
+            if "layout_seed" in options:
+                layout_seed = options["layout_seed"]
+                if isinstance(layout_seed, bool) or not isinstance(layout_seed, (int, np.integer)) or layout_seed < 0:
+                    raise ValueError(f"`options['layout_seed']` must be an integer >= 0, got {layout_seed!r}.")
+            else:
+                layout_seed = self.np_random.integers(*self.layout_seeds)
+            self._load_layout(int(layout_seed))
+        elif "layout_seed" in options:
+            raise ValueError(
+                f"`options['layout_seed']` applies to procedural courses (course={PROCEDURAL!r}); this environment "
+                f"drives course {self.course.name!r}."
+            )
         start = self.course.start
-        if options and "start_pose" in options:
+        if "start_pose" in options:
             x, y, heading_deg = (float(value) for value in options["start_pose"])
             heading = math.radians(heading_deg)
         else:
@@ -174,9 +262,24 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
                 f"`options['start_pose']`: the start pose ({x:g}, {y:g}, {math.degrees(heading):g} deg) puts the robot "
                 f"on a wall of course {self.course.name!r}."
             )
+        if self._progress is not None:
+            self._progress.reset(x, y)
+        self._distance = 0.0
         self._path_length = 0
         self._record_position()
-        return self._lidar.copy(), {"collision": False}
+        return self._lidar.copy(), self._info(False)
+
+    def _load_layout(self, layout_seed: int) -> None:
+        if layout_seed == self.layout_seed:
+            return  # the same layout: its world is built already
+        self.layout_seed = layout_seed
+        self.course = _procedural_course(self.generator, layout_seed, self.robot_radius)
+        self._simulation.load(self.course)
+        self._progress = self._loop_progress(self.course)
+        self._renderer = None
+
+    def _info(self, collided: bool) -> dict[str, Any]:
+        return {"collision": collided, "is_success": not collided, "distance": self._distance, "course": self.course.name}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
         """
@@ -185,7 +288,7 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         :param action: ``(1,)`` array in ``[-1, 1]``
         :return: observation, reward (``step_reward``, or ``collision_reward`` on a collision), terminated (a
             collision), truncated (always ``False``: ``gym.make`` adds the 500-step limit) and
-            ``{"collision": bool}``
+            ``{"collision": bool, "is_success": bool, "distance": float, "course": str}``
         :raises ValueError: if the action is NaN
         """
         steer = float(action[0])
@@ -201,9 +304,10 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         self._x, self._y, self._heading = x, y, heading
         collided = self._simulation.move_robot(x, y, heading, self._lidar)
         self._collided = collided
+        self._distance += self._progress.advance(x, y) if self._progress is not None else self.speed
         self._record_position()
         reward = self.collision_reward if collided else self.step_reward
-        return self._lidar.copy(), reward, collided, False, {"collision": collided}
+        return self._lidar.copy(), reward, collided, False, self._info(collided)
 
     def _record_position(self) -> None:
         if self._path_length == len(self._path):

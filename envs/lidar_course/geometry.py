@@ -156,3 +156,63 @@ def sample_polyline(points: np.ndarray, spacing: float, closed: bool) -> np.ndar
     if not closed:
         samples.append(points[-1:])
     return np.vstack(samples)
+
+
+class LoopProgress:
+    """
+    Distance travelled along a closed polyline (a corridor's centre line), from positions given one after another.
+
+    Each position is projected on the nearest segment; :meth:`advance` searches the segments near the last
+    one first (a robot moves a few centimetres per step), so a step costs a few microseconds.
+
+    :param loop: ``(n, 2)`` vertices of a closed polyline (the last joins the first)
+    """
+
+    _WINDOW = 3
+
+    def __init__(self, loop: np.ndarray):
+        segments = polyline_segments(loop, closed=True)
+        self._segments = [tuple(float(value) for value in row) for row in segments]
+        lengths = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
+        self._lengths = lengths.tolist()
+        self._arc = np.concatenate([[0.0], np.cumsum(lengths)[:-1]]).tolist()
+        #: Length of the loop [m].
+        self.length = float(lengths.sum())
+        self._index = 0
+        self._position = 0.0
+
+    def _project(self, index: int, x: float, y: float) -> tuple[float, float]:
+        # (squared distance to segment `index`, arc length of the projection)
+        x0, y0, x1, y1 = self._segments[index]
+        dx, dy = x1 - x0, y1 - y0
+        length_squared = dx * dx + dy * dy
+        t = ((x - x0) * dx + (y - y0) * dy) / length_squared if length_squared > 0.0 else 0.0
+        t = 0.0 if t < 0.0 else 1.0 if t > 1.0 else t
+        ex, ey = x0 + t * dx - x, y0 + t * dy - y
+        return ex * ex + ey * ey, self._arc[index] + t * self._lengths[index]
+
+    def reset(self, x: float, y: float) -> float:
+        """Locate a position on the whole loop; returns its arc length from the loop's first vertex [m]."""
+        index, _ = closest_segment(np.array([x, y]), np.asarray(self._segments))
+        self._index = index
+        self._position = self._project(index, x, y)[1]
+        return self._position
+
+    def advance(self, x: float, y: float) -> float:
+        """The signed distance along the loop from the last position to this one [m] (forward is positive)."""
+        n = len(self._segments)
+        best_distance, best_index, best_position = math.inf, self._index, self._position
+        for offset in range(-self._WINDOW, self._WINDOW + 1):
+            index = (self._index + offset) % n
+            distance, position = self._project(index, x, y)
+            if distance < best_distance:
+                best_distance, best_index, best_position = distance, index, position
+        delta = best_position - self._position
+        # The shorter way round: crossing the loop's first vertex wraps the arc length.
+        half = self.length / 2.0
+        if delta > half:
+            delta -= self.length
+        elif delta < -half:
+            delta += self.length
+        self._index, self._position = best_index, best_position
+        return delta

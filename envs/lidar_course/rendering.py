@@ -9,6 +9,7 @@ from sb3_adc_envs.lidar_course.course import Course
 
 _BACKGROUND = (255, 255, 255)
 _WALL = (60, 60, 60)
+_OBSTACLE = (120, 120, 120)
 _PATH = (31, 119, 180)
 _RAY = (255, 150, 150)
 _RAY_HIT = (214, 39, 40)
@@ -19,7 +20,7 @@ _HEADING = (0, 0, 0)
 
 class TopDownRenderer:
     """
-    Draws the course's walls, the robot, its lidar rays and the path driven so far, seen from above.
+    Draws the course's walls and obstacles, the robot, its lidar rays and the path driven so far, seen from above.
 
     The walls are drawn once; each frame copies that background and draws the moving parts on it.
 
@@ -41,6 +42,8 @@ class TopDownRenderer:
         wall_px = max(2, round(course.wall_thickness * self.pixels_per_metre))
         for x0, y0, x1, y1 in course.walls:
             draw.line([self.to_pixels(x0, y0), self.to_pixels(x1, y1)], fill=_WALL, width=wall_px)
+        for obstacle in course.obstacles:
+            draw.polygon([self.to_pixels(x, y) for x, y in obstacle.footprint()], fill=_OBSTACLE, outline=_WALL)
 
     def to_pixels(self, x: float, y: float) -> tuple[float, float]:
         """Picture coordinates (column, row) of a point of the course (y points up in the picture)."""

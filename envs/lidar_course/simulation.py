@@ -1,4 +1,4 @@
-"""The pybullet world of one lidar course: ground, walls and a round robot with a planar lidar."""
+"""The pybullet world of one lidar course: ground, walls, obstacles and a round robot with a planar lidar."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pybullet
 
-from sb3_adc_envs.lidar_course.course import Course
+from sb3_adc_envs.lidar_course.course import Course, Obstacle
 
 #: Height of the walls [m].
 WALL_HEIGHT = 0.5
@@ -30,13 +30,14 @@ _ALL_GROUPS = 0xFFFF
 
 class CourseSimulation:
     """
-    A pybullet physics client (``p.DIRECT``) holding one course and one robot.
+    A pybullet physics client (``p.DIRECT``) holding one course (walls and obstacles) and one robot.
 
     The robot is a kinematic cylinder: :meth:`move_robot` places it with
     ``resetBasePositionAndOrientation`` (no dynamics are simulated), asks pybullet whether it touches a
     wall (broad phase ``getOverlappingObjects`` on the robot's bounding box, then ``getClosestPoints``
-    against the walls found there) and casts the lidar's rays with one ``rayTestBatch``. Rays start at
-    the robot's centre and are filtered to the walls' collision group, so they never hit the robot.
+    against the walls and obstacles found there) and casts the lidar's rays with one ``rayTestBatch``. Rays
+    start at the robot's centre and are filtered to the walls' collision group (obstacles are in it too), so
+    they never hit the robot. :meth:`load` replaces the course in the same client.
 
     Every call passes this instance's ``physicsClientId``: several simulations run side by side in one
     process. :meth:`close` disconnects the client; it is safe to call twice and runs on garbage collection.
@@ -48,28 +49,9 @@ class CourseSimulation:
     """
 
     def __init__(self, course: Course, robot_radius: float, ray_angles: np.ndarray, max_range: float):
-        self.course = course
         self.robot_radius = robot_radius
         self.max_range = max_range
         self._client: int | None = pybullet.connect(pybullet.DIRECT)
-        client = self._client
-        ground = pybullet.createMultiBody(
-            baseMass=0.0,
-            baseCollisionShapeIndex=pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client),
-            physicsClientId=client,
-        )
-        pybullet.setCollisionFilterGroupMask(ground, -1, _GROUND_GROUP, 0, physicsClientId=client)
-        self.wall_ids = [self._create_wall(segment, course.wall_thickness) for segment in course.walls]
-        self._first_wall, self._last_wall = self.wall_ids[0], self.wall_ids[-1]
-        self.robot_id = pybullet.createMultiBody(
-            baseMass=0.0,
-            baseCollisionShapeIndex=pybullet.createCollisionShape(
-                pybullet.GEOM_CYLINDER, radius=robot_radius, height=ROBOT_HEIGHT, physicsClientId=client
-            ),
-            basePosition=[course.start.x, course.start.y, SENSOR_HEIGHT],
-            physicsClientId=client,
-        )
-        pybullet.setCollisionFilterGroupMask(self.robot_id, -1, _ROBOT_GROUP, _WALL_GROUP, physicsClientId=client)
 
         #: ``(n_rays, 2)`` ray vectors in the robot's frame (unit direction times ``max_range``).
         self.ray_vectors = max_range * np.column_stack([np.cos(ray_angles), np.sin(ray_angles)])
@@ -81,6 +63,61 @@ class CourseSimulation:
         self._orientation = [0.0, 0.0, 0.0, 1.0]
         self._aabb_min = [0.0, 0.0, ROBOT_GROUND_CLEARANCE]
         self._aabb_max = [0.0, 0.0, ROBOT_GROUND_CLEARANCE + ROBOT_HEIGHT]
+        self._hits: tuple[tuple[int, ...], ...] = ()
+        self.load(course)
+
+    def load(self, course: Course) -> None:
+        """
+        Build a course in this client, replacing the one there (``resetSimulation``, then every body anew).
+
+        :param course: The course
+        """
+        client = self._client
+        if client is None:
+            raise RuntimeError("the simulation is closed")
+        pybullet.resetSimulation(physicsClientId=client)
+        self.course = course
+        ground = pybullet.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client),
+            physicsClientId=client,
+        )
+        pybullet.setCollisionFilterGroupMask(ground, -1, _GROUND_GROUP, 0, physicsClientId=client)
+        #: Body ids of the wall segments, then of the obstacles (consecutive).
+        self.wall_ids = [self._create_wall(segment, course.wall_thickness) for segment in course.walls]
+        self.obstacle_ids = [self._create_obstacle(obstacle) for obstacle in course.obstacles]
+        self._first_wall, self._last_wall = self.wall_ids[0], (self.obstacle_ids or self.wall_ids)[-1]
+        self.robot_id = pybullet.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=pybullet.createCollisionShape(
+                pybullet.GEOM_CYLINDER, radius=self.robot_radius, height=ROBOT_HEIGHT, physicsClientId=client
+            ),
+            basePosition=[course.start.x, course.start.y, SENSOR_HEIGHT],
+            physicsClientId=client,
+        )
+        pybullet.setCollisionFilterGroupMask(self.robot_id, -1, _ROBOT_GROUP, _WALL_GROUP, physicsClientId=client)
+
+    def _create_obstacle(self, obstacle: Obstacle) -> int:
+        # Obstacles are static bodies in the walls' collision group: the rays see them and the robot hits them.
+        if obstacle.shape == "cylinder":
+            shape = pybullet.createCollisionShape(
+                pybullet.GEOM_CYLINDER, radius=obstacle.length / 2.0, height=WALL_HEIGHT, physicsClientId=self._client
+            )
+        else:
+            shape = pybullet.createCollisionShape(
+                pybullet.GEOM_BOX,
+                halfExtents=[obstacle.length / 2.0, obstacle.width / 2.0, WALL_HEIGHT / 2.0],
+                physicsClientId=self._client,
+            )
+        body = pybullet.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=shape,
+            basePosition=[obstacle.x, obstacle.y, WALL_HEIGHT / 2.0],
+            baseOrientation=[0.0, 0.0, math.sin(obstacle.yaw / 2.0), math.cos(obstacle.yaw / 2.0)],
+            physicsClientId=self._client,
+        )
+        pybullet.setCollisionFilterGroupMask(body, -1, _WALL_GROUP, _ALL_GROUPS, physicsClientId=self._client)
+        return int(body)
 
     def _create_wall(self, segment: np.ndarray, thickness: float) -> int:
         x0, y0, x1, y1 = (float(value) for value in segment)
@@ -144,7 +181,13 @@ class CourseSimulation:
         hits = pybullet.rayTestBatch(ray_from, ray_to, collisionFilterMask=_WALL_GROUP, physicsClientId=client)
         for i, hit in enumerate(hits):
             lidar_out[i] = hit[2]
+        self._hits = hits
         return self._touches_wall(x, y)
+
+    @property
+    def ray_bodies(self) -> list[int]:
+        """Body id each ray of the last :meth:`move_robot` hit (a wall's, an obstacle's, or -1 for none)."""
+        return [int(hit[0]) for hit in self._hits]
 
     def _touches_wall(self, x: float, y: float) -> bool:
         radius = self.robot_radius
