@@ -37,7 +37,11 @@ class HighwayObstacleEnv(AbstractEnv):
       lanes chosen at random and always leaves at least one lane free.
     - **Reward**: ``step_reward`` (+0.001) per step; ``collision_reward`` (-1) on hitting an obstacle or
       leaving the road (a corner of the car beyond a road edge), which both terminate the episode.
-    - **Episode**: truncated after ``duration`` seconds (``duration * policy_frequency`` steps).
+    - **Episode**: truncated after ``duration`` seconds (``duration * policy_frequency`` steps, 200 by default,
+      the registered ``max_episode_steps``; with another duration or frequency pass ``max_episode_steps`` to
+      ``gym.make`` too).
+    - **Frame rate**: ``metadata["render_fps"]`` is ``policy_frequency`` (5), one frame per step, before and
+      after ``reset``.
     - **Rendering**: ``rgb_array`` is drawn off-screen by pygame: no display is needed, and it also works with
       ``SDL_VIDEODRIVER=dummy`` (with which highway-env alone draws blank frames).
     - **Info**: ``{"collision": bool, "off_road": bool, "speed": float, "crashed": bool, "action": ...}``.
@@ -147,6 +151,19 @@ class HighwayObstacleEnv(AbstractEnv):
             for lane in self.np_random.choice(lanes, size=n_blocked, replace=False):
                 self.road.objects.append(Obstacle(self.road, [x, float(lane) * lane_width]))
             x += float(self.np_random.uniform(low, high))
+
+    def update_metadata(self, video_real_time_ratio: int = 2) -> None:
+        """
+        Set ``metadata["render_fps"]`` to the rate frames come at, in real time: one per step at
+        ``policy_frequency`` (5 Hz by default, the class's value), or ``simulation_frequency`` while highway-env
+        records its intermediate frames. highway-env's own version doubles the rate and writes it into the dict
+        shared by every instance; this one gives the instance its own dict.
+
+        :param video_real_time_ratio: Ignored (highway-env's speed-up of videos)
+        """
+        recording = getattr(self, "_record_video_wrapper", None) is not None
+        fps = self.config["simulation_frequency"] if recording else self.config["policy_frequency"]
+        self.metadata = {**type(self).metadata, "render_fps": fps}
 
     def render(self) -> np.ndarray | None:
         """highway-env's top view as a ``(height, width, 3)`` ``uint8`` array with ``render_mode="rgb_array"``."""

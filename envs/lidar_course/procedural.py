@@ -209,7 +209,8 @@ class CourseGenerator:
             scale = min(1.0, largest / reach) if reach > 0.0 else 1.0
             reach *= scale
             # Centre across the corridor: from the closed side's wall face to where the gap is exactly `min_gap`.
-            lateral = float(rng.uniform(-width / 2.0 + _INSIDE, width / 2.0 - min_gap - reach))
+            low = -width / 2.0 + _INSIDE
+            lateral = float(rng.uniform(low, max(low, width / 2.0 - min_gap - reach)))  # max: rounding of `scale`
             centre = point + normal * (free_side * lateral)
             if shape == "box":
                 obstacles.append(
