@@ -16,7 +16,7 @@ NAMESPACE = "sb3_adc"
 
 #: Make kwargs of ``sb3_adc/LidarObstacleCourse-v1``: a new procedural layout at every reset, from the training
 #: layout seeds, seen through :data:`V1_N_RAYS` rays (docs/envs/lidar_course.rst says why that many).
-V1_N_RAYS = 16
+V1_N_RAYS = 24
 _LIDAR_V1_KWARGS: dict[str, Any] = {"course": "procedural", "n_rays": V1_N_RAYS}
 
 #: Every environment the package registers: id -> keyword arguments of :func:`gymnasium.register`.

@@ -162,13 +162,12 @@ class LoopProgress:
     """
     Distance travelled along a closed polyline (a corridor's centre line), from positions given one after another.
 
-    Each position is projected on the nearest segment; :meth:`advance` searches the segments near the last
-    one first (a robot moves a few centimetres per step), so a step costs a few microseconds.
+    Each position is projected on the nearest segment; :meth:`advance` walks from the last position's segment
+    to its neighbours while they are nearer (a robot moves a few centimetres per step), so a step costs a few
+    microseconds.
 
     :param loop: ``(n, 2)`` vertices of a closed polyline (the last joins the first)
     """
-
-    _WINDOW = 3
 
     def __init__(self, loop: np.ndarray):
         segments = polyline_segments(loop, closed=True)
@@ -201,11 +200,15 @@ class LoopProgress:
     def advance(self, x: float, y: float) -> float:
         """The signed distance along the loop from the last position to this one [m] (forward is positive)."""
         n = len(self._segments)
-        best_distance, best_index, best_position = math.inf, self._index, self._position
-        for offset in range(-self._WINDOW, self._WINDOW + 1):
-            index = (self._index + offset) % n
-            distance, position = self._project(index, x, y)
-            if distance < best_distance:
+        best_index = self._index
+        best_distance, best_position = self._project(best_index, x, y)
+        # Walk to the nearest segment from the last one, forward then backward: a step moves a few centimetres.
+        for direction in (1, -1):
+            while True:
+                index = (best_index + direction) % n
+                distance, position = self._project(index, x, y)
+                if distance >= best_distance:
+                    break
                 best_distance, best_index, best_position = distance, index, position
         delta = best_position - self._position
         # The shorter way round: crossing the loop's first vertex wraps the arc length.

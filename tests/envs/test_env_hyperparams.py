@@ -8,7 +8,13 @@ import pytest
 from sb3_adc.config import packaged_hyperparams_file, read_hyperparams_file, resolve_entry, select_entry
 from sb3_adc.config.loader import load_hyperparams
 
-ENV_IDS = ["sb3_adc/LidarObstacleCourse-v0", "sb3_adc/LidarObstacleCourseNoisy-v0", "sb3_adc/HighwayObstacle-v0"]
+ENV_IDS = [
+    "sb3_adc/LidarObstacleCourse-v0",
+    "sb3_adc/LidarObstacleCourseNoisy-v0",
+    "sb3_adc/LidarObstacleCourse-v1",
+    "sb3_adc/LidarObstacleCourseNoisy-v1",
+    "sb3_adc/HighwayObstacle-v0",
+]
 
 
 @pytest.mark.parametrize("algo", ["adc", "ddpg", "td3"])
@@ -44,3 +50,13 @@ def test_the_paper_files_hold_table_2(algo):
     critic = {"qf": [100], "value_net_arch": [20], "n_intervals": 100} if algo == "adc" else {"qf": [100, 20]}
     assert kwargs["policy_kwargs"]["net_arch"] == {"pi": [100, 20], "qf": critic.pop("qf")}
     assert {key: kwargs["policy_kwargs"][key] for key in critic} == critic
+
+
+@pytest.mark.parametrize("algo", ["adc", "ddpg", "td3", "sac"])
+@pytest.mark.parametrize("noisy", ["", "Noisy"])
+def test_v1_entries_start_from_the_v0_entries(algo, noisy):
+    v0 = load_hyperparams(algo, f"sb3_adc/LidarObstacleCourse{noisy}-v0")
+    v1 = load_hyperparams(algo, f"sb3_adc/LidarObstacleCourse{noisy}-v1")
+    assert v1.source.endswith(f"[sb3_adc/LidarObstacleCourse{noisy}-v1]")
+    assert v1.model_kwargs == v0.model_kwargs
+    assert v1.env_kwargs == v0.env_kwargs
