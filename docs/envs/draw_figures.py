@@ -1,6 +1,7 @@
 """Draw the environment pictures of the documentation into ``docs/_static/envs/``.
 
-- ``courses.png``: every shipped course of the lidar obstacle course, with its start pose;
+- ``courses.png``: every shipped course of the lidar obstacle course, with its obstacles and start pose;
+- ``procedural_courses.png``: eight procedural layouts of ``sb3_adc/LidarObstacleCourse-v1``;
 - ``lidar_course_frame.png``: ``render_mode="rgb_array"`` of the lidar course after 120 steps;
 - ``highway_obstacle_frame.png``: ``render_mode="rgb_array"`` of the highway task after 8 steps.
 
@@ -21,35 +22,64 @@ import numpy as np
 from PIL import Image
 
 import sb3_adc  # noqa: F401 (registers the environments)
-from sb3_adc_envs.lidar_course import load_course, shipped_courses
+from sb3_adc_envs.lidar_course import Course, load_course, shipped_courses
+from sb3_adc_envs.lidar_course.procedural import CourseGenerator
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+from matplotlib.axes import Axes
 
 OUT = Path(__file__).resolve().parent.parent / "_static" / "envs"
 
 
+def draw_course(ax: Axes, course: Course, title: str) -> None:
+    """One course seen from above: walls, obstacles (filled) and the start pose (an orange arrow)."""
+    for x0, y0, x1, y1 in course.walls:
+        ax.plot([x0, x1], [y0, y1], color="0.2", linewidth=1.4)
+    for obstacle in course.obstacles:
+        outline = obstacle.footprint()
+        ax.fill(outline[:, 0], outline[:, 1], color="tab:red", linewidth=0)
+    start = course.start
+    ax.annotate(
+        "",
+        xy=(start.x + 1.2 * math.cos(start.heading), start.y + 1.2 * math.sin(start.heading)),
+        xytext=(start.x, start.y),
+        arrowprops={"arrowstyle": "->", "color": "tab:orange", "linewidth": 1.5},
+    )
+    ax.plot(start.x, start.y, marker="o", color="tab:orange")
+    ax.set_title(title, fontsize=9)
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+
+
 def draw_courses(path: Path) -> None:
-    """All shipped courses side by side, with their start pose and corridor width."""
+    """All shipped courses, four a row, with their start pose, corridor width and obstacles."""
     names = shipped_courses()
-    fig, axes = plt.subplots(1, len(names), figsize=(3.4 * len(names), 3.2))
-    for ax, name in zip(axes, names, strict=True):
+    columns = 4
+    rows = math.ceil(len(names) / columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(3.4 * columns, 3.2 * rows))
+    for ax in axes.flat[len(names) :]:
+        ax.axis("off")
+    for ax, name in zip(axes.flat, names, strict=False):
         course = load_course(name)
-        for x0, y0, x1, y1 in course.walls:
-            ax.plot([x0, x1], [y0, y1], color="0.2", linewidth=1.4)
-        start = course.start
-        ax.annotate(
-            "",
-            xy=(start.x + 1.2 * math.cos(start.heading), start.y + 1.2 * math.sin(start.heading)),
-            xytext=(start.x, start.y),
-            arrowprops={"arrowstyle": "->", "color": "tab:orange", "linewidth": 1.5},
-        )
-        ax.plot(start.x, start.y, marker="o", color="tab:orange")
         width = f"width {course.corridor.width:g} m" if course.corridor is not None else "wall polylines"
-        ax.set_title(f"{name}\n({width})", fontsize=9)
-        ax.set_aspect("equal")
-        ax.set_xticks([])
-        ax.set_yticks([])
+        obstacles = f", {len(course.obstacles)} obstacles" if course.obstacles else ""
+        draw_course(ax, course, f"{name}\n({width}{obstacles})")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def draw_procedural_courses(path: Path) -> None:
+    """Eight procedural layouts (layout seeds 0 to 7, from the training range)."""
+    generator = CourseGenerator()
+    fig, axes = plt.subplots(2, 4, figsize=(13.6, 6.4))
+    for layout_seed, ax in enumerate(axes.flat):
+        course = generator.generate(layout_seed)
+        assert course.corridor is not None
+        title = f"layout seed {layout_seed}\n(width {course.corridor.width:.2f} m, {len(course.obstacles)} obstacles)"
+        draw_course(ax, course, title)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -82,6 +112,7 @@ def draw_highway_frame(path: Path) -> None:
 def main() -> None:
     OUT.mkdir(parents=True, exist_ok=True)
     draw_courses(OUT / "courses.png")
+    draw_procedural_courses(OUT / "procedural_courses.png")
     draw_lidar_frame(OUT / "lidar_course_frame.png")
     draw_highway_frame(OUT / "highway_obstacle_frame.png")
     print(f"Wrote the pictures in {OUT}")
