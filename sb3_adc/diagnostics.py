@@ -1,0 +1,609 @@
+"""
+Critic diagnostics for any TD3-family model (:class:`~sb3_adc.ADC`, SB3's TD3 and DDPG,
+:class:`~sb3_adc.baselines.SplitRateDDPG`): what the critic believes against what the policy earns, how strongly
+the critic pushes the actor, and, for ADC's dueling interval critic, how its intervals are visited and how smooth
+its advantage is across them.
+
+- :func:`evaluate_critic`: the critic's estimation bias ``Q(s_t, a_t) - G_t`` against the discounted Monte-Carlo
+  returns of deterministic evaluation rollouts (as in the over-estimation figure of the TD3 paper, Fujimoto et
+  al., 2018);
+- :func:`gradient_norms`: on a replay batch, the norm of the actor-loss gradient and of ``dQ/da`` at ``a = mu(s)``;
+- :func:`interval_visits` and :func:`advantage_roughness`: ADC only, the visit count of each interval in the
+  replay buffer's actions and the advantage's roughness across neighbouring intervals;
+- :class:`CriticDiagnosticsCallback` logs them during training (``eval/...`` and ``train/...`` keys), keeps their
+  history and writes it (:func:`save_history`, :func:`load_history`);
+- :func:`plot_diagnostics` draws the histories of several models (it needs the ``experiment`` extra).
+
+See the user guide's page on diagnostics for how to read each key.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from collections.abc import Callable, Mapping, Sequence
+from typing import IO, Any
+
+import gymnasium as gym
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.evaluation import evaluate_policy
+from stable_baselines3.common.type_aliases import PyTorchObs
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, sync_envs_normalization
+
+#: One record per log time: ``timesteps``, the scalar keys measured then, and for ADC the arrays
+#: :data:`INTERVAL_VISITS_KEY` and :data:`ADVANTAGE_PROFILE_KEY`.
+History = list[dict[str, Any]]
+
+#: Keys of :func:`evaluate_critic`.
+EVAL_KEYS = ("eval/critic_bias", "eval/critic_bias_abs", "eval/mc_return_mean", "eval/q_mean", "eval/mc_truncation_weight")
+#: Keys of :func:`gradient_norms`.
+GRADIENT_KEYS = ("train/actor_grad_norm", "train/dq_da_norm")
+#: Scalar keys of the dueling interval critic (ADC only).
+INTERVAL_KEYS = (
+    "train/interval_visits_min_fraction",
+    "train/interval_visits_unvisited",
+    "train/advantage_roughness",
+    "train/advantage_neighbour_diff",
+)
+#: History key of the visit counts, ``(action_dim, n_intervals)``.
+INTERVAL_VISITS_KEY = "interval_visits"
+#: History key of the centred advantage across intervals averaged over a replay batch, ``(branches, n_intervals)``.
+ADVANTAGE_PROFILE_KEY = "advantage_profile"
+#: The array-valued history keys (kept in the ``.npz`` file only).
+ARRAY_KEYS = (INTERVAL_VISITS_KEY, ADVANTAGE_PROFILE_KEY)
+#: File names written by :func:`save_history` in its folder.
+HISTORY_NPZ, HISTORY_CSV = "critic_diagnostics.npz", "critic_diagnostics.csv"
+
+
+def _check_td3_family(model: BaseAlgorithm) -> None:
+    """Raise ``TypeError`` unless ``model`` has what the diagnostics read: an actor, a critic with ``q1_forward``,
+    a replay buffer and a ``Box`` action space."""
+    missing = [name for name in ("actor", "critic", "replay_buffer", "gamma") if not hasattr(model, name)]
+    if missing or not hasattr(getattr(model, "critic", None), "q1_forward") or not isinstance(model.action_space, spaces.Box):
+        raise TypeError(
+            "the critic diagnostics need a TD3-family model (ADC, TD3, DDPG, SplitRateDDPG: an actor, a critic with "
+            f"`q1_forward`, a replay buffer and a Box action space), got {type(model).__name__}"
+        )
+
+
+def is_interval_critic(model: BaseAlgorithm) -> bool:
+    """
+    Whether the model's critic is ADC's dueling interval critic (it has a ``partition`` of the action range).
+
+    :param model: A TD3-family model
+    """
+    return hasattr(model.critic, "partition")  # type: ignore[attr-defined]
+
+
+def discounted_returns(rewards: np.ndarray, gamma: float) -> np.ndarray:
+    """
+    The discounted Monte-Carlo return ``G_t = sum_{k >= t} gamma^(k - t) r_k`` of every step of one episode.
+
+    :param rewards: ``(T,)`` rewards of the episode, in order
+    :param gamma: Discount factor
+    :return: ``(T,)``
+    """
+    returns = np.zeros(len(rewards), dtype=np.float64)
+    running = 0.0
+    for step in range(len(rewards) - 1, -1, -1):
+        running = float(rewards[step]) + gamma * running
+        returns[step] = running
+    return returns
+
+
+def truncation_weights(length: int, gamma: float, truncated: bool) -> np.ndarray:
+    """
+    The weight ``gamma^H`` of the return missing from the Monte-Carlo return of each step of an episode cut at
+    truncation, ``H = T - t`` steps before the cut: ``G_t`` lacks ``gamma^H V(s_T)``. Zero for an episode that
+    terminated (its returns are exact).
+
+    :param length: Number of steps ``T`` of the episode
+    :param gamma: Discount factor
+    :param truncated: Whether the episode was truncated (a time limit) rather than terminated
+    :return: ``(T,)``
+    """
+    if not truncated:
+        return np.zeros(length, dtype=np.float64)
+    return gamma ** np.arange(length, 0, -1, dtype=np.float64)
+
+
+def _stack_observations(observations: list[Any]) -> np.ndarray | dict[str, np.ndarray]:
+    if isinstance(observations[0], dict):
+        return {key: np.stack([obs[key] for obs in observations]) for key in observations[0]}
+    return np.stack(observations)
+
+
+def evaluate_critic(
+    model: BaseAlgorithm,
+    env: gym.Env | VecEnv,
+    n_eval_episodes: int = 5,
+    truncation_tolerance: float = 0.05,
+) -> dict[str, float]:
+    """
+    The critic's estimation bias on deterministic evaluation rollouts: ``Q(s_t, a_t) - G_t``, with ``Q`` from the
+    first critic network (``critic.q1_forward``, at the scaled action) and ``G_t`` the discounted Monte-Carlo return
+    with the model's ``gamma`` (the TD3 paper's over-estimation measure, Fujimoto et al., 2018, Figure 1).
+
+    Episodes cut by a time limit make ``G_t`` short of the true return by ``gamma^H V(s_T)``, ``H`` steps before
+    the cut: the end of a truncated episode is biased towards under-estimating the return. So the statistics are
+    taken over the first part of each truncated episode, the steps with ``gamma^H <= truncation_tolerance`` (all
+    steps of an episode that terminated); an episode too short for any such step contributes its first step only.
+    ``eval/mc_truncation_weight``, the mean ``gamma^H`` of the steps used, bounds what the cut can hide:
+    ``|G_t - true return| <= gamma^H max|V|``.
+
+    The rollouts use SB3's :func:`~stable_baselines3.common.evaluation.evaluate_policy`; the returns use the rewards
+    the environment returns (those the critic learns from, normalised by a ``VecNormalize`` if there is one).
+
+    :param model: A TD3-family model
+    :param env: The evaluation environment (a separate instance from the training one)
+    :param n_eval_episodes: Number of episodes
+    :param truncation_tolerance: Largest ``gamma^H`` of a step of a truncated episode that the statistics use,
+        in ``(0, 1]``
+    :return: ``eval/critic_bias`` (mean ``Q - G``), ``eval/critic_bias_abs`` (mean ``|Q - G|``),
+        ``eval/mc_return_mean``, ``eval/q_mean`` and ``eval/mc_truncation_weight``, over the steps used
+    """
+    _check_td3_family(model)
+    if not isinstance(env, VecEnv):
+        env = DummyVecEnv([lambda: env])  # type: ignore[list-item, return-value]
+    gamma = float(model.gamma)  # type: ignore[attr-defined]
+    current: list[list[tuple[Any, np.ndarray, float]]] = [[] for _ in range(env.num_envs)]
+    episodes: list[tuple[list[tuple[Any, np.ndarray, float]], bool]] = []
+
+    def record_step(local_vars: dict[str, Any], _globals: dict[str, Any]) -> None:
+        # evaluate_policy calls this for each env ``i`` after each step, before it moves on to the next observation.
+        index = local_vars["i"]
+        observations = local_vars["observations"]
+        obs = (
+            {key: value[index] for key, value in observations.items()}
+            if isinstance(observations, dict)
+            else observations[index]
+        )
+        current[index].append((obs, np.asarray(local_vars["actions"][index]), float(local_vars["reward"])))
+        if local_vars["done"]:
+            episodes.append((current[index], bool(local_vars["info"].get("TimeLimit.truncated", False))))
+            current[index] = []
+
+    evaluate_policy(
+        model,
+        env,
+        n_eval_episodes=n_eval_episodes,
+        deterministic=True,
+        callback=record_step,
+        warn=False,
+        return_episode_rewards=True,
+    )
+    q_values, mc_returns, weights = [], [], []
+    for steps, truncated in episodes:
+        observations = _stack_observations([obs for obs, _, _ in steps])
+        actions = model.policy.scale_action(np.stack([action for _, action, _ in steps]))
+        obs_tensor, _ = model.policy.obs_to_tensor(observations)
+        with th.no_grad():
+            q = model.critic.q1_forward(obs_tensor, th.as_tensor(actions, device=model.device, dtype=th.float32))  # type: ignore[attr-defined]
+        returns = discounted_returns(np.array([reward for _, _, reward in steps]), gamma)
+        weight = truncation_weights(len(steps), gamma, truncated)
+        used = weight <= truncation_tolerance
+        if not used.any():
+            used[0] = True
+        q_values.append(q.cpu().numpy().reshape(-1)[used])
+        mc_returns.append(returns[used])
+        weights.append(weight[used])
+    q_all, g_all = np.concatenate(q_values).astype(np.float64), np.concatenate(mc_returns)
+    bias = q_all - g_all
+    return {
+        "eval/critic_bias": float(bias.mean()),
+        "eval/critic_bias_abs": float(np.abs(bias).mean()),
+        "eval/mc_return_mean": float(g_all.mean()),
+        "eval/q_mean": float(q_all.mean()),
+        "eval/mc_truncation_weight": float(np.concatenate(weights).mean()),
+    }
+
+
+def gradient_norms(model: BaseAlgorithm, observations: PyTorchObs) -> dict[str, float]:
+    """
+    How strongly the critic pushes the actor on a batch of observations, without stepping any optimizer and
+    leaving no gradient in any parameter's ``.grad``.
+
+    :param model: A TD3-family model
+    :param observations: A batch of observations (as the replay buffer samples them)
+    :return: ``train/actor_grad_norm``, the L2 norm over all the actor's parameters of the gradient of TD3's actor
+        loss ``-Q(s, mu(s)).mean()``, and ``train/dq_da_norm``, the mean over the batch of ``|dQ/da|`` at
+        ``a = mu(s)`` (in the scaled action space ``[-1, 1]``)
+    """
+    _check_td3_family(model)
+    actor, critic = model.actor, model.critic  # type: ignore[attr-defined]
+    parameters = [parameter for parameter in actor.parameters() if parameter.requires_grad]
+    with th.enable_grad():
+        # autograd.grad returns the gradients instead of accumulating them into ``.grad``.
+        actor_loss = -critic.q1_forward(observations, actor(observations)).mean()
+        actor_grads = th.autograd.grad(actor_loss, parameters, allow_unused=True)
+        actions = actor(observations).detach().requires_grad_(True)
+        (dq_da,) = th.autograd.grad(critic.q1_forward(observations, actions).sum(), [actions])
+    squared = sum(float(grad.pow(2).sum()) for grad in actor_grads if grad is not None)
+    return {
+        "train/actor_grad_norm": math.sqrt(squared),
+        "train/dq_da_norm": float(dq_da.norm(dim=1).mean()),
+    }
+
+
+def interval_visits(model: BaseAlgorithm) -> np.ndarray:
+    """
+    ADC only: how many of the actions stored in the replay buffer fall in each interval of the critic's partition.
+
+    :param model: An ADC model
+    :return: ``int64`` counts ``(action_dim, n_intervals)``; they sum to the number of stored transitions times
+        ``action_dim``
+    """
+    if not is_interval_critic(model):
+        raise TypeError(f"interval visits need ADC's dueling interval critic, got {type(model).__name__}")
+    partition = model.critic.partition  # type: ignore[attr-defined]
+    buffer = model.replay_buffer  # type: ignore[attr-defined]
+    n_intervals = partition.n_intervals
+    stored = buffer.actions[: buffer.size()].reshape(-1, buffer.action_dim)
+    index = partition.index(th.as_tensor(stored, dtype=th.float32, device=partition.edges.device))
+    # One bincount for every dimension: dimension d's intervals are the bins [d * n, (d + 1) * n).
+    offsets = th.arange(buffer.action_dim, device=index.device) * n_intervals
+    counts = th.bincount((index + offsets).reshape(-1), minlength=buffer.action_dim * n_intervals)
+    return counts.view(buffer.action_dim, n_intervals).cpu().numpy().astype(np.int64)
+
+
+def advantage_roughness(advantages: th.Tensor) -> dict[str, float]:
+    """
+    How smooth an advantage is across neighbouring intervals.
+
+    :param advantages: ``(batch, branches, n_intervals)``, as :meth:`~sb3_adc.DuelingIntervalCritic.decompose`
+        returns them
+    :return: ``train/advantage_neighbour_diff``, the mean ``|A(z + 1) - A(z)|`` over neighbours, and
+        ``train/advantage_roughness``, that divided by the advantage's standard deviation over the intervals
+        (averaged over the batch and branches): scale-free, 0 for an advantage constant in ``z``, about
+        ``sqrt(12) / n_intervals`` for one linear in ``z`` and about ``2 / sqrt(pi) = 1.13`` for independent noise
+    """
+    neighbour_diff = float((advantages[..., 1:] - advantages[..., :-1]).abs().mean())
+    spread = float(advantages.std(dim=-1, correction=0).mean())
+    return {
+        "train/advantage_neighbour_diff": neighbour_diff,
+        "train/advantage_roughness": neighbour_diff / spread if spread > 0 else 0.0,
+    }
+
+
+def batch_diagnostics(model: BaseAlgorithm, batch_size: int | None = None) -> dict[str, Any]:
+    """
+    The diagnostics of one replay batch: :func:`gradient_norms` and, for ADC, the interval visits of the whole
+    buffer and the advantage's roughness and profile on the batch.
+
+    :param model: A TD3-family model with a non-empty replay buffer
+    :param batch_size: Size of the batch; ``None``: the model's ``batch_size``
+    :return: The keys of :data:`GRADIENT_KEYS`, and for ADC those of :data:`INTERVAL_KEYS`,
+        :data:`INTERVAL_VISITS_KEY` (counts ``(action_dim, n_intervals)``) and :data:`ADVANTAGE_PROFILE_KEY` (the
+        advantage centred on its mean over the intervals, averaged over the batch: ``(branches, n_intervals)``)
+    """
+    _check_td3_family(model)
+    buffer = model.replay_buffer  # type: ignore[attr-defined]
+    if buffer.size() == 0:
+        raise ValueError("the replay buffer is empty: the batch diagnostics need stored transitions")
+    batch = buffer.sample(batch_size or model.batch_size, env=model.get_vec_normalize_env())  # type: ignore[attr-defined]
+    results: dict[str, Any] = gradient_norms(model, batch.observations)
+    if is_interval_critic(model):
+        counts = interval_visits(model)
+        results["train/interval_visits_min_fraction"] = float(counts.min() / counts[0].sum())
+        results["train/interval_visits_unvisited"] = int((counts == 0).sum())
+        results[INTERVAL_VISITS_KEY] = counts
+        with th.no_grad():
+            _, advantages, _ = model.critic.decompose(batch.observations, batch.actions)  # type: ignore[attr-defined]
+        results.update(advantage_roughness(advantages))
+        centred = advantages - advantages.mean(dim=-1, keepdim=True)
+        results[ADVANTAGE_PROFILE_KEY] = centred.mean(dim=0).cpu().numpy().astype(np.float64)
+    return results
+
+
+def _check_positive_int(name: str, value: object) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"`{name}` must be an integer >= 1, got {value!r}")
+
+
+class CriticDiagnosticsCallback(BaseCallback):
+    """
+    Log the critic diagnostics of a TD3-family model (ADC, TD3, DDPG, SplitRateDDPG) during training.
+
+    - every ``eval_freq`` calls: :func:`evaluate_critic` on ``n_eval_episodes`` deterministic rollouts of
+      ``eval_env`` (the critic's bias against discounted Monte-Carlo returns, cut at truncation: see there);
+    - every ``log_freq`` calls: :func:`batch_diagnostics` on one replay batch (the actor-gradient and ``dQ/da``
+      norms; for ADC the interval visits and the advantage's roughness).
+
+    The values go to the logger (``eval/...`` and ``train/...`` keys, written at the model's next dump) and to
+    :attr:`history`, one record per log time, which is written to ``save_path`` after each record
+    (:func:`save_history`). As with SB3's ``EvalCallback``, the frequencies count calls of the callback, that is
+    steps of the vectorised training environment.
+
+    :param eval_env: The evaluation environment: an environment, a ``VecEnv`` or a Gymnasium id (made with one
+        environment); it must be a separate instance from the training environment
+    :param eval_freq: Evaluate the critic every ``eval_freq`` calls, an integer >= 1
+    :param n_eval_episodes: Evaluation episodes per evaluation, an integer >= 1
+    :param log_freq: Compute the batch diagnostics every ``log_freq`` calls, an integer >= 1
+    :param batch_size: Size of the replay batch (an integer >= 1); ``None``: the model's ``batch_size``
+    :param truncation_tolerance: Largest ``gamma^H`` of a step of a truncated episode used for the bias, in
+        ``(0, 1]`` (see :func:`evaluate_critic`)
+    :param save_path: Folder to write the history to (``critic_diagnostics.npz`` and ``.csv``); ``None``: keep it
+        in memory only
+    :param verbose: 1 to print the bias after each evaluation
+    """
+
+    def __init__(
+        self,
+        eval_env: gym.Env | VecEnv | str,
+        eval_freq: int = 10_000,
+        n_eval_episodes: int = 5,
+        log_freq: int = 1_000,
+        batch_size: int | None = None,
+        truncation_tolerance: float = 0.05,
+        save_path: str | None = None,
+        verbose: int = 0,
+    ):
+        super().__init__(verbose)
+        _check_positive_int("eval_freq", eval_freq)
+        _check_positive_int("n_eval_episodes", n_eval_episodes)
+        _check_positive_int("log_freq", log_freq)
+        if batch_size is not None:
+            _check_positive_int("batch_size", batch_size)
+        if (
+            isinstance(truncation_tolerance, bool)
+            or not isinstance(truncation_tolerance, (int, float))
+            or not 0 < truncation_tolerance <= 1
+        ):
+            raise ValueError(f"`truncation_tolerance` must be a number in (0, 1], got {truncation_tolerance!r}")
+        if isinstance(eval_env, str):
+            eval_env = make_vec_env(eval_env, n_envs=1)
+        elif not isinstance(eval_env, VecEnv):
+            eval_env = DummyVecEnv([lambda: eval_env])  # type: ignore[list-item, return-value]
+        self.eval_env: VecEnv = eval_env
+        self.eval_freq = eval_freq
+        self.n_eval_episodes = n_eval_episodes
+        self.log_freq = log_freq
+        self.batch_size = batch_size
+        self.truncation_tolerance = float(truncation_tolerance)
+        self.save_path = save_path
+        self.history: History = []
+
+    def _init_callback(self) -> None:
+        _check_td3_family(self.model)
+        if self.save_path is not None:
+            os.makedirs(self.save_path, exist_ok=True)
+
+    def _on_step(self) -> bool:
+        record: dict[str, Any] = {}
+        if self.n_calls % self.eval_freq == 0:
+            # Evaluate with the training environment's normalisation statistics, as EvalCallback does.
+            sync_envs_normalization(self.training_env, self.eval_env)
+            record.update(evaluate_critic(self.model, self.eval_env, self.n_eval_episodes, self.truncation_tolerance))
+            if self.verbose >= 1:
+                print(
+                    f"Critic at {self.num_timesteps} steps: bias {record['eval/critic_bias']:+.2f} "
+                    f"(Q {record['eval/q_mean']:.2f}, Monte-Carlo return {record['eval/mc_return_mean']:.2f})"
+                )
+        if self.n_calls % self.log_freq == 0 and self.model.replay_buffer.size() > 0:  # type: ignore[attr-defined]
+            record.update(batch_diagnostics(self.model, self.batch_size))
+        if record:
+            for key, value in record.items():
+                if key not in ARRAY_KEYS:
+                    self.logger.record(key, value)
+            self.history.append({"timesteps": self.num_timesteps, **record})
+            if self.save_path is not None:
+                save_history(self.history, self.save_path)
+        return True
+
+
+def _write_atomically(path: str, write: Callable[[IO[Any]], None], binary: bool = False) -> None:
+    """Write a file through a temporary file and ``os.replace``, so that a reader never sees it half-written."""
+    temporary = path + ".partial"
+    with open(temporary, "wb") if binary else open(temporary, "w", encoding="utf-8", newline="") as stream:
+        write(stream)
+    os.replace(temporary, path)
+
+
+def _scalar_keys(history: History) -> list[str]:
+    keys: list[str] = []
+    for record in history:
+        keys += [key for key in record if key != "timesteps" and key not in ARRAY_KEYS and key not in keys]
+    return keys
+
+
+def save_history(history: History, folder: str) -> tuple[str, str]:
+    """
+    Write a history to ``folder``, each file through a temporary file:
+
+    - ``critic_diagnostics.npz``: ``timesteps``; one array per scalar key over all records (NaN where a record
+      lacks it); each array key stacked over the records that have it, with their ``<key>_timesteps`` and
+      indices ``<key>_records``;
+    - ``critic_diagnostics.csv``: ``timesteps`` and the scalar keys.
+
+    :param history: The records (:attr:`CriticDiagnosticsCallback.history`)
+    :param folder: The folder (created if needed)
+    :return: The paths of the ``.npz`` and ``.csv`` files
+    """
+    os.makedirs(folder, exist_ok=True)
+    keys = _scalar_keys(history)
+    arrays: dict[str, Any] = {"timesteps": np.array([record["timesteps"] for record in history], dtype=np.int64)}
+    for key in keys:
+        arrays[key] = np.array([record.get(key, np.nan) for record in history], dtype=np.float64)
+    for key in ARRAY_KEYS:
+        with_key = [record for record in history if key in record]
+        if with_key:
+            arrays[key] = np.stack([record[key] for record in with_key])
+            arrays[f"{key}_timesteps"] = np.array([record["timesteps"] for record in with_key], dtype=np.int64)
+            arrays[f"{key}_records"] = np.array(
+                [index for index, record in enumerate(history) if key in record], dtype=np.int64
+            )
+    npz_path, csv_path = os.path.join(folder, HISTORY_NPZ), os.path.join(folder, HISTORY_CSV)
+    _write_atomically(npz_path, lambda stream: np.savez(stream, **arrays), binary=True)
+
+    def write_csv(stream: IO[Any]) -> None:
+        writer = csv.writer(stream)
+        writer.writerow(["timesteps", *keys])
+        for index in range(len(history)):
+            writer.writerow([int(arrays["timesteps"][index]), *(repr(float(arrays[key][index])) for key in keys)])
+
+    _write_atomically(csv_path, write_csv)
+    return npz_path, csv_path
+
+
+def load_history(path: str) -> History:
+    """
+    Read a history written by :func:`save_history`.
+
+    :param path: The ``critic_diagnostics.npz`` file, or the folder that holds it
+    :return: The records, with the keys each record had
+    """
+    if os.path.isdir(path):
+        path = os.path.join(path, HISTORY_NPZ)
+    with np.load(path) as data:
+        arrays = {key: data[key] for key in data.files}
+    timesteps = arrays.pop("timesteps")
+    history: History = [{"timesteps": int(step)} for step in timesteps]
+    array_records = {key: arrays.pop(f"{key}_records") for key in ARRAY_KEYS if key in arrays}
+    for key in array_records:
+        arrays.pop(f"{key}_timesteps")
+    for key, values in arrays.items():
+        if key in ARRAY_KEYS:
+            for index, value in zip(array_records[key], values, strict=True):
+                history[int(index)][key] = value
+        else:
+            for record, value in zip(history, values, strict=True):
+                if not np.isnan(value):
+                    record[key] = float(value)
+    return history
+
+
+def _runs(value: History | Sequence[History]) -> list[History]:
+    """One history, or several runs' histories, as a list of runs."""
+    if len(value) > 0 and isinstance(value[0], dict):
+        return [value]  # type: ignore[list-item]
+    return list(value)  # type: ignore[arg-type]
+
+
+def _last_array(runs: list[History], key: str) -> np.ndarray | None:
+    """The mean over runs of the last value of an array key (None if no run has it)."""
+    last = [next((record[key] for record in reversed(run) if key in record), None) for run in runs]
+    found = [np.asarray(value, dtype=np.float64) for value in last if value is not None]
+    return np.mean(found, axis=0) if found else None
+
+
+def plot_diagnostics(
+    histories: Mapping[str, History | Sequence[History]], path: str, title: str = "", reps: int = 2000
+) -> str:
+    """
+    Draw the critic diagnostics of one or several models as a PNG.
+
+    Panels: the critic's bias ``Q - G`` against timesteps (mean over runs, with a 95% stratified-bootstrap band
+    when a model has several runs, computed by :func:`sb3_adc.experiment.statistics.learning_curves`); the
+    actor-gradient norm against timesteps; for the ADC models, the fraction of the stored actions in each interval
+    at the last record (averaged over action dimensions and runs) and the advantage profile across intervals (the
+    last record's centred advantage averaged over its replay batch, branches and runs).
+
+    Needs the ``experiment`` extra (matplotlib, pandas, rliable).
+
+    :param histories: Label -> one history, or a list of histories (one per run), e.g. from :func:`load_history`
+    :param path: The PNG file
+    :param title: The figure's title
+    :param reps: Bootstrap replications of the confidence bands
+    :return: ``path``
+    """
+    import pandas as pd
+    from matplotlib.figure import Figure
+
+    from sb3_adc.experiment.statistics import learning_curves
+
+    runs_by_label = {label: _runs(value) for label, value in histories.items()}
+    interval_labels = [label for label, runs in runs_by_label.items() if _last_array(runs, INTERVAL_VISITS_KEY) is not None]
+    n_panels = 4 if interval_labels else 2
+    figure = Figure(figsize=(6.4 * 2, 4.0 * (n_panels // 2)), layout="constrained")
+    axes = list(figure.subplots(n_panels // 2, 2, squeeze=False).flat)
+    colors = {label: f"C{index % 10}" for index, label in enumerate(runs_by_label)}
+
+    curve_panels = (
+        (axes[0], "eval/critic_bias", "critic bias Q - G (return units)", "Critic bias on evaluation rollouts"),
+        (axes[1], "train/actor_grad_norm", "actor-loss gradient norm (L2)", "Actor-gradient norm on replay batches"),
+    )
+    for ax, key, ylabel, panel_title in curve_panels:
+        for label, runs in runs_by_label.items():
+            rows = [
+                {"env": key, "algo": label, "seed": run_index, "timesteps": record["timesteps"], "mean_return": record[key]}
+                for run_index, run in enumerate(runs)
+                for record in run
+                if key in record
+            ]
+            if not rows:
+                continue
+            curves = learning_curves(pd.DataFrame(rows), reps=reps)
+            n_runs = int(curves["n_runs"].iloc[0])
+            ax.plot(
+                curves["timesteps"], curves["mean"], color=colors[label], label=f"{label} ({n_runs} run{'s' * (n_runs > 1)})"
+            )
+            if n_runs > 1:
+                ax.fill_between(
+                    curves["timesteps"], curves["mean_ci_low"], curves["mean_ci_high"], color=colors[label], alpha=0.2
+                )
+        if key == "eval/critic_bias":
+            ax.axhline(0.0, color="black", linewidth=0.8, linestyle=":")
+        ax.set(title=panel_title, xlabel="timesteps", ylabel=ylabel)
+        ax.grid(alpha=0.3)
+        if ax.has_data():
+            ax.legend(fontsize="small")
+
+    if interval_labels:
+        visits_ax, profile_ax = axes[2], axes[3]
+        for label in interval_labels:
+            runs = runs_by_label[label]
+            counts = _last_array(runs, INTERVAL_VISITS_KEY)
+            assert counts is not None
+            fraction = (counts / counts.sum(axis=-1, keepdims=True)).mean(axis=0)
+            n_intervals = fraction.shape[-1]
+            centres = -1.0 + (2.0 * np.arange(n_intervals) + 1.0) / n_intervals
+            visits_ax.step(centres, fraction, where="mid", color=colors[label], label=f"{label} ({n_intervals} intervals)")
+            visits_ax.axhline(1.0 / n_intervals, color=colors[label], linewidth=0.8, linestyle=":")
+            profile = _last_array(runs, ADVANTAGE_PROFILE_KEY)
+            if profile is not None:
+                profile_centres = -1.0 + (2.0 * np.arange(profile.shape[-1]) + 1.0) / profile.shape[-1]
+                profile_ax.plot(profile_centres, profile.mean(axis=0), color=colors[label], label=label)
+        visits_ax.set(
+            title="Replay-buffer actions per interval (last record; dotted: uniform)",
+            xlabel="scaled action, interval centre",
+            ylabel="fraction of stored actions",
+        )
+        profile_ax.set(
+            title="Advantage across intervals (last record, replay-batch mean)",
+            xlabel="scaled action, interval centre",
+            ylabel="A(s, z) - mean_z A(s, z) (return units)",
+        )
+        for ax in (visits_ax, profile_ax):
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize="small")
+    figure.suptitle(title or "Critic diagnostics", fontsize="medium")
+    figure.savefig(path, dpi=120)
+    return path
+
+
+__all__ = [
+    "ADVANTAGE_PROFILE_KEY",
+    "EVAL_KEYS",
+    "GRADIENT_KEYS",
+    "INTERVAL_KEYS",
+    "INTERVAL_VISITS_KEY",
+    "CriticDiagnosticsCallback",
+    "History",
+    "advantage_roughness",
+    "batch_diagnostics",
+    "discounted_returns",
+    "evaluate_critic",
+    "gradient_norms",
+    "interval_visits",
+    "is_interval_critic",
+    "load_history",
+    "plot_diagnostics",
+    "save_history",
+    "truncation_weights",
+]
