@@ -1,7 +1,9 @@
 """
 The ``sb3-adc`` command (also ``python -m sb3_adc``): ``train``, ``enjoy``, ``benchmark`` and ``plot``.
 
-Run ``sb3-adc SUB-COMMAND --help`` for the options of each.
+Run ``sb3-adc SUB-COMMAND --help`` for the options of each. The command needs the ``experiment`` extra
+(``pip install "sb3-adc[experiment]"``); without it, or without an extra a run needs (``envs`` for the robot
+environments, ``ray``, ``video``, ``track``), it prints which extra to install and exits with status 2.
 """
 
 from __future__ import annotations
@@ -11,14 +13,19 @@ import sys
 from collections.abc import Sequence
 
 import sb3_adc
-from sb3_adc.cli import benchmark_command, enjoy_command, plot_command, train_command
-from sb3_adc.cli.common import CommandError
 from sb3_adc.config import HyperparamsError
-from sb3_adc.experiment import RunInterrupted
+from sb3_adc.extras import MissingExtraError, missing_extra, requires_extra
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The parser of ``sb3-adc`` and its sub-commands."""
+    """
+    The parser of ``sb3-adc`` and its sub-commands.
+
+    :raises MissingExtraError: When the ``experiment`` extra is not installed
+    """
+    with requires_extra("experiment", "the sb3-adc command"):
+        from sb3_adc.cli import benchmark_command, enjoy_command, plot_command, train_command
+
     parser = argparse.ArgumentParser(
         prog="sb3-adc",
         description="Train, evaluate, benchmark and plot Actor-Dueling-Critic (ADC) and its baselines, RL-Zoo style.",
@@ -35,13 +42,30 @@ def main(argv: Sequence[str] | None = None) -> int:
     Run ``sb3-adc`` with the given arguments (default: ``sys.argv[1:]``).
 
     :param argv: The command-line arguments
-    :return: The exit status: 0 on success, 1 if benchmark runs failed, 2 for invalid input, 130 when interrupted
+    :return: The exit status: 0 on success, 1 if benchmark runs failed, 2 for invalid input or a missing extra,
+        130 when interrupted
     """
-    args = build_parser().parse_args(argv)
+    try:
+        parser = build_parser()
+    except MissingExtraError as error:
+        print(f"sb3-adc: error: {error}", file=sys.stderr)
+        return 2
+    # Imported once the parser exists: the experiment extra is there.
+    from sb3_adc.cli.common import CommandError
+    from sb3_adc.experiment import RunInterrupted
+
+    args = parser.parse_args(argv)
     try:
         return int(args.handler(args))
     except (HyperparamsError, CommandError, FileNotFoundError, FileExistsError) as error:
         print(f"sb3-adc {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except ModuleNotFoundError as error:
+        # A package of an extra the run needs (pybullet when making the lidar course, ray for --backend ray, ...).
+        missing = missing_extra(error)
+        if missing is None:
+            raise
+        print(f"sb3-adc {args.command}: error: {missing}", file=sys.stderr)
         return 2
     except RunInterrupted:
         return 130

@@ -1,4 +1,7 @@
-"""``sb3-adc plot``: learning curves, reward-variance curves and a final-performance table from benchmark CSVs."""
+"""
+``sb3-adc plot``: learning curves, reward-variance curves, a final-performance table, performance profiles and
+the probability of improvement from benchmark CSVs.
+"""
 
 from __future__ import annotations
 
@@ -17,8 +20,11 @@ Plot the results of `sb3-adc benchmark` with rliable statistics (95% stratified-
   learning_curves.png     mean evaluation return across runs per algorithm, with its CI
   reward_variance.png     across-run variance of the rewards (the ADC paper's Figures 5 and 8): of the
                           evaluation returns and, from episodes.csv, of the training-episode returns
-  final_performance.png   IQM and mean of the final returns with their CIs
-  final_performance.csv/.md, curves.csv, episode_variance.csv   the numbers behind the figures
+  final_performance.png   IQM and mean of the final returns with their CIs (one x range for all panels)
+  performance_profiles.png        fraction of runs whose final return exceeds each threshold, with its CI
+  probability_of_improvement.png  P(X > Y) that a run of X ends above a run of Y, per pair of algorithms
+  final_performance.csv/.md, curves.csv, episode_variance.csv, performance_profiles.csv,
+  probability_of_improvement.csv   the numbers behind the figures
 
 final.csv and episodes.csv are read from the folder of --csv when present.
 
@@ -35,7 +41,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """
     parser = subparsers.add_parser(
         "plot",
-        help="learning curves, reward-variance curves and IQM/mean table with bootstrap CIs (rliable)",
+        help="learning curves, reward variance, IQM/mean, performance profiles, P(X > Y) with bootstrap CIs (rliable)",
         description=DESCRIPTION,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -82,7 +88,8 @@ def run(args: argparse.Namespace) -> int:
     :return: The exit status
     """
     # rliable, SciPy and matplotlib take a second to import: only for this sub-command.
-    from sb3_adc.experiment.plots import plot_results
+    from sb3_adc.experiment.plots import plot_comparisons, plot_results
+    from sb3_adc.experiment.statistics import last_evaluations
 
     if args.reps < 1:
         raise CommandError(f"--reps must be >= 1, got {args.reps}")
@@ -98,15 +105,24 @@ def run(args: argparse.Namespace) -> int:
     if evaluations.empty:
         raise CommandError(f"no evaluations to plot in {args.csv} (after --algos/--envs)")
     output_dir = args.output_dir or os.path.join(folder, "plots")
+    final = _select(final, args)
     outputs = plot_results(
         evaluations,
         output_dir,
-        final=_select(final, args),
+        final=final,
         episodes=_select(episodes, args),
         reps=args.reps,
         seed=args.seed,
         window=args.window,
     )
+    comparisons = plot_comparisons(
+        final if final is not None and not final.empty else last_evaluations(evaluations),
+        output_dir,
+        reps=args.reps,
+        seed=args.seed,
+    )
+    outputs.figures += comparisons.figures
+    outputs.tables += comparisons.tables
     with open(os.path.join(output_dir, "final_performance.md"), encoding="utf-8") as stream:
         print(stream.read())
     for path in outputs.figures + outputs.tables:

@@ -1,6 +1,9 @@
 """
 Figures and tables of benchmark results: learning curves with 95% bootstrap CIs, across-run reward-variance
-curves (the ADC paper's Figures 5 and 8) and final performance (IQM and mean with 95% stratified-bootstrap CIs).
+curves (the ADC paper's Figures 5 and 8), final performance (IQM and mean with 95% stratified-bootstrap CIs),
+rliable's performance profiles and probability of improvement.
+
+Needs the ``experiment`` extra (matplotlib, pandas, rliable).
 """
 
 from __future__ import annotations
@@ -10,25 +13,44 @@ import os
 from dataclasses import dataclass, field
 
 import numpy as np
-import pandas as pd
-from matplotlib import colormaps
-from matplotlib.axes import Axes
-from matplotlib.figure import Figure
-from matplotlib.lines import Line2D
 
-from sb3_adc.experiment.statistics import (
-    episode_variance,
-    final_performance,
-    last_evaluations,
-    learning_curves,
-    markdown_table,
-)
+from sb3_adc.extras import requires_extra
+
+with requires_extra("experiment", "the benchmark figures"):
+    import pandas as pd
+    from matplotlib import colormaps
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from rliable import plot_utils
+
+    from sb3_adc.experiment.statistics import (
+        episode_variance,
+        final_performance,
+        last_evaluations,
+        learning_curves,
+        markdown_table,
+        performance_profiles,
+        probability_of_improvement,
+    )
+
+#: Algorithm id (``--algo``) -> the name the figures give it, as the paper's text does.
+ALGO_DISPLAY_NAMES: dict[str, str] = {
+    "adc": "ADC",
+    "ddpg": "DDPG",
+    "td3": "TD3",
+    "sac": "SAC",
+    "vanilla_ac": "vanilla actor-critic",
+    "dqn": "dueling DQN, 25 actions",
+}
 
 #: Legend of the final-performance figure: the marker of each statistic.
 _METRIC_MARKERS = [
     Line2D([], [], marker="o", color="black", linestyle="none", label="IQM"),
     Line2D([], [], marker="s", color="black", linestyle="none", label="mean"),
 ]
+#: The unit of a variance of returns.
+VARIANCE_LABEL = "variance across runs (return²)"
 #: Size of one panel (inches).
 PANEL_WIDTH, PANEL_HEIGHT = 6.4, 4.0
 
@@ -46,10 +68,26 @@ class PlotOutputs:
     tables: list[str] = field(default_factory=list)
 
 
+def display_name(algo: str) -> str:
+    """
+    The name of an algorithm in figures: :data:`ALGO_DISPLAY_NAMES`, else the id itself.
+
+    :param algo: The algorithm id (``adc``, ``dqn``, ...)
+    """
+    return ALGO_DISPLAY_NAMES.get(str(algo), str(algo))
+
+
 def _colors(algos: list[str]) -> dict[str, tuple[float, float, float, float]]:
     """The same color for an algorithm in every figure."""
     cmap = colormaps["tab10"]
     return {str(algo): cmap(index % 10) for index, algo in enumerate(sorted(algos))}
+
+
+def _shared_limits(low: np.ndarray, high: np.ndarray, margin: float = 0.05) -> tuple[float, float]:
+    """One axis range for every panel of a figure: the span of all intervals, with a margin."""
+    lowest, highest = float(np.nanmin(low)), float(np.nanmax(high))
+    pad = margin * (highest - lowest) if highest > lowest else max(1.0, abs(highest) * margin)
+    return lowest - pad, highest + pad
 
 
 def _grid(n_panels: int, rows_per_panel: int = 1) -> tuple[Figure, list[Axes]]:
@@ -75,7 +113,7 @@ def plot_learning_curves(curves: pd.DataFrame, path: str, title: str = "") -> st
         for algo, group in curves[curves["env"] == env].groupby("algo", sort=True):
             color = colors[str(algo)]
             runs = int(group["n_runs"].iloc[0])
-            ax.plot(group["timesteps"], group["mean"], color=color, label=f"{algo} ({runs} runs)")
+            ax.plot(group["timesteps"], group["mean"], color=color, label=f"{display_name(str(algo))} ({runs} runs)")
             ax.fill_between(group["timesteps"], group["mean_ci_low"], group["mean_ci_high"], color=color, alpha=0.2)
         ax.set(title=env, xlabel="timesteps", ylabel="evaluation return")
         ax.grid(alpha=0.3)
@@ -110,20 +148,25 @@ def plot_reward_variance(curves: pd.DataFrame, episodes: pd.DataFrame | None, pa
             if group["variance"].isna().all():
                 continue
             color = colors[str(algo)]
-            ax.plot(group["timesteps"], group["variance"], color=color, label=str(algo))
+            ax.plot(group["timesteps"], group["variance"], color=color, label=display_name(str(algo)))
             ax.fill_between(group["timesteps"], group["variance_ci_low"], group["variance_ci_high"], color=color, alpha=0.2)
-        ax.set(title=f"{env}: evaluation returns", xlabel="timesteps", ylabel="variance across runs")
+        ax.set(title=f"{env}: evaluation returns", xlabel="timesteps", ylabel=VARIANCE_LABEL)
         ax.grid(alpha=0.3)
         ax.legend(fontsize="small")
         if rows == 2:
             assert per_episode is not None
             ax = axes[1, column]
             for algo, group in per_episode[per_episode["env"] == env].groupby("algo", sort=True):
-                ax.plot(group["episode"], group["variance_smoothed"], color=colors.get(str(algo), "k"), label=str(algo))
+                ax.plot(
+                    group["episode"],
+                    group["variance_smoothed"],
+                    color=colors.get(str(algo), "k"),
+                    label=display_name(str(algo)),
+                )
             ax.set(
                 title=f"{env}: training episodes",
                 xlabel=f"episode ({window}-episode moving average)",
-                ylabel="variance across runs",
+                ylabel=VARIANCE_LABEL,
             )
             ax.grid(alpha=0.3)
             ax.legend(fontsize="small")
@@ -134,13 +177,18 @@ def plot_reward_variance(curves: pd.DataFrame, episodes: pd.DataFrame | None, pa
 
 def plot_final_performance(performance: pd.DataFrame, path: str) -> str:
     """
-    One panel per environment: IQM and mean of the final returns per algorithm, with 95% CIs.
+    One panel per environment: IQM and mean of the final returns per algorithm, with 95% CIs, on one x range
+    for all panels (so that panels compare at a glance).
 
     :param performance: The output of :func:`~sb3_adc.experiment.statistics.final_performance`
     :param path: The PNG file
     """
     envs = sorted(performance["env"].unique())
     colors = _colors(list(performance["algo"].unique()))
+    limits = _shared_limits(
+        performance[["iqm_ci_low", "mean_ci_low"]].to_numpy(dtype=np.float64),
+        performance[["iqm_ci_high", "mean_ci_high"]].to_numpy(dtype=np.float64),
+    )
     figure, axes = _grid(len(envs))
     for ax, env in zip(axes, envs, strict=False):
         table = performance[performance["env"] == env].sort_values("algo")
@@ -156,13 +204,101 @@ def plot_final_performance(performance: pd.DataFrame, path: str) -> str:
                     color=colors[row.algo],
                     capsize=3,
                 )
-        ax.set_yticks(positions, list(table["algo"]))
-        ax.set(title=env, xlabel="final return (95% CI)")
+        ax.set_yticks(positions, [display_name(algo) for algo in table["algo"]])
+        ax.set(title=env, xlabel="final return (95% CI)", xlim=limits)
         ax.grid(alpha=0.3, axis="x")
         ax.legend(handles=_METRIC_MARKERS, fontsize="small")
     for ax in axes[len(envs) :]:
         ax.set_visible(False)
     figure.suptitle("Final return: IQM (o) and mean (s), 95% stratified-bootstrap CIs", fontsize="medium")
+    figure.savefig(path, dpi=120)
+    return path
+
+
+def plot_performance_profiles(profiles: pd.DataFrame, path: str) -> str:
+    """
+    One panel per environment: rliable's performance profile of each algorithm, the fraction of runs whose
+    final return exceeds tau, with its 95% stratified-bootstrap CI band. A profile above another's is better
+    over the whole range of returns, not just on average.
+
+    :param profiles: The output of :func:`~sb3_adc.experiment.statistics.performance_profiles`
+    :param path: The PNG file
+    """
+    envs = sorted(profiles["env"].unique())
+    colors = _colors(list(profiles["algo"].unique()))
+    figure, axes = _grid(len(envs))
+    for ax, env in zip(axes, envs, strict=False):
+        table = profiles[profiles["env"] == env]
+        curves, bands, names = {}, {}, {}
+        for algo, group in table.groupby("algo", sort=True):
+            name = f"{display_name(str(algo))} ({int(group['n_runs'].iloc[0])} runs)"
+            names[name] = colors[str(algo)]
+            curves[name] = group["fraction"].to_numpy()
+            bands[name] = group[["fraction_ci_low", "fraction_ci_high"]].to_numpy().T
+        plot_utils.plot_performance_profiles(
+            curves,
+            table.groupby("algo", sort=True)["tau"].apply(np.asarray).iloc[0],
+            performance_profile_cis=bands,
+            ax=ax,
+            colors=names,
+            xlabel=r"final return $\tau$",
+            ylabel=r"fraction of runs with return $> \tau$",
+            labelsize="medium",
+            ticklabelsize="small",
+            legend=True,
+            legendsize="small",
+        )
+        ax.set_title(env)
+    for ax in axes[len(envs) :]:
+        ax.set_visible(False)
+    figure.suptitle("Performance profiles of the final returns (95% stratified-bootstrap CIs)", fontsize="medium")
+    figure.savefig(path, dpi=120)
+    return path
+
+
+def plot_probability_of_improvement(improvement: pd.DataFrame, path: str) -> str:
+    """
+    rliable's probability-of-improvement figure: for each pair of algorithms, P(X > Y) that a run of X ends
+    with a higher return than a run of Y (averaged over the environments both ran), with its 95% CI. Above 0.5,
+    X tends to do better; a CI that contains 0.5 shows no clear difference.
+
+    :param improvement: The output of :func:`~sb3_adc.experiment.statistics.probability_of_improvement`
+    :param path: The PNG file
+    """
+    algos = sorted(set(improvement["algo_x"]) | set(improvement["algo_y"]))
+    colors = _colors(algos)
+    n_pairs = max(len(improvement), 1)
+    figure = Figure(figsize=(PANEL_WIDTH, 1.6 + 0.5 * n_pairs), layout="constrained")
+    ax = figure.subplots()
+    separator = "|"
+    points, intervals = {}, {}
+    for row in improvement.itertuples(index=False):
+        key = f"{display_name(row.algo_x)}{separator}{display_name(row.algo_y)}"
+        points[key] = row.probability
+        intervals[key] = np.array([row.ci_low, row.ci_high])
+    plot_utils.plot_probability_of_improvement(
+        points,
+        intervals,
+        pair_separator=separator,
+        ax=ax,
+        colors=[colors[algo] for algo in improvement["algo_x"]],
+        xticks=[0.0, 0.25, 0.5, 0.75, 1.0],
+        xlabel="P(X > Y): probability that a run of X (left) ends above a run of Y (right)",
+        left_ylabel="",
+        right_ylabel="",
+        labelsize="medium",
+        ticklabelsize="small",
+    )
+    ax.axvline(0.5, color="grey", linestyle="--", linewidth=1)
+    # A point estimate with a zero-width interval (P = 0 or 1 with few runs) stays visible.
+    ax.plot(list(points.values()), range(len(points)), "o", color="black", markersize=4, clip_on=False)
+    ax.set_xlim(0.0, 1.0)
+    n_envs = sorted(set(improvement["n_envs"]))
+    environments = "environment" if n_envs == [1] else "environments"
+    figure.suptitle(
+        f"Probability of improvement of the final returns, over {' or '.join(map(str, n_envs))} {environments} (95% CIs)",
+        fontsize="medium",
+    )
     figure.savefig(path, dpi=120)
     return path
 
@@ -182,6 +318,7 @@ def plot_results(
     Files: ``learning_curves.png``, ``reward_variance.png``, ``final_performance.png``, ``curves.csv``
     (mean, IQM and variance across runs at each timestep, with CIs), ``final_performance.csv`` and
     ``final_performance.md`` (IQM and mean with 95% CIs), and ``episode_variance.csv`` when episodes are given.
+    :func:`plot_comparisons` adds rliable's performance profiles and probability of improvement.
 
     :param evaluations: The evaluation curves (``evaluations.csv``)
     :param output_dir: Where to write
@@ -214,4 +351,36 @@ def plot_results(
     outputs.figures.append(plot_learning_curves(curves, out("learning_curves.png")))
     outputs.figures.append(plot_reward_variance(curves, episodes, out("reward_variance.png"), window))
     outputs.figures.append(plot_final_performance(performance, out("final_performance.png")))
+    return outputs
+
+
+def plot_comparisons(final: pd.DataFrame, output_dir: str, reps: int = 2000, seed: int = 0) -> PlotOutputs:
+    """
+    Write rliable's comparisons of the final returns: ``performance_profiles.png`` and ``.csv`` (the fraction of
+    runs above each return, per environment) and, with two algorithms or more, ``probability_of_improvement.png``
+    and ``.csv`` (P(X > Y) for each pair), all with 95% stratified-bootstrap CIs.
+
+    :param final: One row per run, with columns ``env``, ``algo``, ``seed`` and ``mean_return`` (``final.csv``,
+        or :func:`~sb3_adc.experiment.statistics.last_evaluations` of the evaluation curves)
+    :param output_dir: Where to write
+    :param reps: Bootstrap replications
+    :param seed: Seed of the bootstrap
+    """
+    if final.empty:
+        raise ValueError("no final returns to compare (is the final CSV empty?).")
+    os.makedirs(output_dir, exist_ok=True)
+    outputs = PlotOutputs()
+
+    def out(name: str) -> str:
+        return os.path.join(output_dir, name)
+
+    profiles = performance_profiles(final, reps=reps, seed=seed)
+    profiles.to_csv(out("performance_profiles.csv"), index=False)
+    outputs.tables.append(out("performance_profiles.csv"))
+    outputs.figures.append(plot_performance_profiles(profiles, out("performance_profiles.png")))
+    improvement = probability_of_improvement(final, reps=reps, seed=seed)
+    if not improvement.empty:
+        improvement.to_csv(out("probability_of_improvement.csv"), index=False)
+        outputs.tables.append(out("probability_of_improvement.csv"))
+        outputs.figures.append(plot_probability_of_improvement(improvement, out("probability_of_improvement.png")))
     return outputs

@@ -1,18 +1,28 @@
 """
 Statistics of benchmark results with rliable (Agarwal et al., 2021): interquartile mean (IQM) and mean with
-95% stratified-bootstrap confidence intervals, per environment and algorithm, and across-run variance curves.
+95% stratified-bootstrap confidence intervals, per environment and algorithm, across-run variance curves,
+performance profiles (the fraction of runs above each return) and the probability of improvement
+P(X > Y) between algorithms.
+
+Needs the ``experiment`` extra (rliable, SciPy, pandas).
 """
 
 from __future__ import annotations
 
+import itertools
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 import numpy as np
-import pandas as pd
-from rliable import library as rly
-from rliable import metrics
-from scipy.stats import trim_mean
+
+from sb3_adc.extras import requires_extra
+
+with requires_extra("experiment", "the benchmark statistics"):
+    import pandas as pd
+    from rliable import library as rly
+    from rliable import metrics
+    from scipy.stats import trim_mean
 
 #: Coverage of the confidence intervals.
 CONFIDENCE = 0.95
@@ -42,13 +52,13 @@ CURVE_COLUMNS = (
 )
 
 
-def _bootstrap(
-    scores: np.ndarray, func: Callable[[np.ndarray], np.ndarray], reps: int, seed: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """Point estimates and 95% stratified-bootstrap intervals (rows: low, high) of ``func(scores)``."""
-    if scores.shape[0] < 2:
-        point = func(scores)
-        return point, np.stack([point, point])
+PERFORMANCE_PROFILE_COLUMNS = ("env", "algo", "n_runs", "tau", "fraction", "fraction_ci_low", "fraction_ci_high")
+IMPROVEMENT_COLUMNS = ("algo_x", "algo_y", "n_envs", "probability", "ci_low", "ci_high")
+
+
+@contextmanager
+def _seeded_bootstrap(seed: int) -> Iterator[None]:
+    """Reproducible rliable bootstraps that leave NumPy's global generator as they found it."""
     # rliable 1.2 draws its resamples from NumPy's global generator (`random_state` only seeds arch's own):
     # seed it for reproducible intervals, and give it back its state afterwards.
     global_state = np.random.get_state()  # noqa: NPY002
@@ -57,15 +67,26 @@ def _bootstrap(
         with warnings.catch_warnings():
             # rliable passes `random_state` to arch, which deprecates it.
             warnings.filterwarnings("ignore", category=FutureWarning, module="arch")
-            points, intervals = rly.get_interval_estimates(
-                {"scores": scores},
-                func,
-                reps=reps,
-                confidence_interval_size=CONFIDENCE,
-                random_state=np.random.RandomState(seed),
-            )
+            yield
     finally:
         np.random.set_state(global_state)  # noqa: NPY002
+
+
+def _bootstrap(
+    scores: np.ndarray, func: Callable[[np.ndarray], np.ndarray], reps: int, seed: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Point estimates and 95% stratified-bootstrap intervals (rows: low, high) of ``func(scores)``."""
+    if scores.shape[0] < 2:
+        point = func(scores)
+        return point, np.stack([point, point])
+    with _seeded_bootstrap(seed):
+        points, intervals = rly.get_interval_estimates(
+            {"scores": scores},
+            func,
+            reps=reps,
+            confidence_interval_size=CONFIDENCE,
+            random_state=np.random.RandomState(seed),
+        )
     return np.asarray(points["scores"]), np.asarray(intervals["scores"])
 
 
@@ -202,6 +223,104 @@ def episode_variance(episodes: pd.DataFrame, window: int = 10) -> pd.DataFrame:
         )
     columns = ["env", "algo", "episode", "n_runs", "variance", "variance_smoothed"]
     return pd.concat(frames, ignore_index=True)[columns] if frames else pd.DataFrame(columns=columns)
+
+
+def performance_profiles(final: pd.DataFrame, n_taus: int = 101, reps: int = 2000, seed: int = 0) -> pd.DataFrame:
+    """
+    Performance profiles (rliable's score distributions): for each environment and algorithm, the fraction of
+    runs whose final return exceeds each threshold tau, with 95% stratified-bootstrap CIs. The thresholds span
+    the final returns of every algorithm on that environment, so the profiles of an environment share one axis.
+
+    :param final: One row per run, with columns ``env``, ``algo`` and ``mean_return``
+    :param n_taus: Thresholds per environment (at least 2)
+    :param reps: Bootstrap replications
+    :param seed: Seed of the bootstrap
+    :return: One row per (env, algo, tau), columns :data:`PERFORMANCE_PROFILE_COLUMNS`
+    """
+    if n_taus < 2:
+        raise ValueError(f"n_taus must be >= 2, got {n_taus}")
+    frames = []
+    for env, table in final.groupby("env", sort=True):
+        returns = table["mean_return"].to_numpy(dtype=np.float64)
+        taus = np.linspace(returns.min(), returns.max(), n_taus)
+        # Just below the lowest return, so that every profile starts at 1.
+        taus[0] -= max(1e-6, 1e-6 * abs(taus[0]))
+        for algo, group in table.groupby("algo", sort=True):
+            scores = group["mean_return"].to_numpy(dtype=np.float64).reshape(-1, 1)
+            if scores.shape[0] < 2:
+                fraction = (scores > taus).mean(axis=0)
+                low, high = fraction, fraction
+            else:
+                with _seeded_bootstrap(seed):
+                    profiles, cis = rly.create_performance_profile(
+                        {"scores": scores}, taus, reps=reps, confidence_interval_size=CONFIDENCE
+                    )
+                fraction, (low, high) = np.asarray(profiles["scores"]), np.asarray(cis["scores"])
+            frames.append(
+                pd.DataFrame(
+                    {
+                        "env": env,
+                        "algo": algo,
+                        "n_runs": scores.shape[0],
+                        "tau": taus,
+                        "fraction": fraction,
+                        "fraction_ci_low": low,
+                        "fraction_ci_high": high,
+                    }
+                )
+            )
+    if not frames:
+        return pd.DataFrame(columns=list(PERFORMANCE_PROFILE_COLUMNS))
+    return pd.concat(frames, ignore_index=True)[list(PERFORMANCE_PROFILE_COLUMNS)]
+
+
+def probability_of_improvement(final: pd.DataFrame, reps: int = 2000, seed: int = 0) -> pd.DataFrame:
+    """
+    Probability of improvement (rliable): for each ordered pair of algorithms (X, Y), the probability that a run
+    of X ends with a higher return than a run of Y (ties count one half), averaged over the environments both
+    ran, with a 95% stratified-bootstrap CI (runs of X and Y resampled independently within each environment).
+    Being a rank statistic, it needs no normalisation of the returns across environments. Each unordered pair
+    appears once (P(Y > X) = 1 - P(X > Y)), with ``adc`` as X where it is in the pair.
+
+    :param final: One row per run, with columns ``env``, ``algo``, ``seed`` and ``mean_return``
+    :param reps: Bootstrap replications
+    :param seed: Seed of the bootstrap
+    :return: One row per pair, columns :data:`IMPROVEMENT_COLUMNS`
+    """
+    rows = []
+    algos = sorted(final["algo"].unique(), key=lambda algo: (algo != "adc", algo))
+    final = final.sort_values("seed", kind="stable") if "seed" in final.columns else final
+    for algo_x, algo_y in itertools.combinations(algos, 2):
+        scores = []
+        for _, table in final.groupby("env", sort=True):
+            x = table.loc[table["algo"] == algo_x, "mean_return"].to_numpy(dtype=np.float64)
+            y = table.loc[table["algo"] == algo_y, "mean_return"].to_numpy(dtype=np.float64)
+            if len(x) and len(y):
+                scores.append((x, y))
+        if not scores:
+            continue
+        # rliable wants (runs, tasks) matrices: as many runs in every environment, so the shortest count is kept.
+        n_x, n_y = min(len(x) for x, _ in scores), min(len(y) for _, y in scores)
+        matrix_x = np.stack([x[:n_x] for x, _ in scores], axis=1)
+        matrix_y = np.stack([y[:n_y] for _, y in scores], axis=1)
+        if n_x < 2 or n_y < 2:
+            point = float(metrics.probability_of_improvement(matrix_x, matrix_y))
+            low, high = point, point
+        else:
+            with _seeded_bootstrap(seed):
+                points, intervals = rly.get_interval_estimates(
+                    {"pair": (matrix_x, matrix_y)},
+                    metrics.probability_of_improvement,
+                    reps=reps,
+                    confidence_interval_size=CONFIDENCE,
+                    random_state=np.random.RandomState(seed),
+                )
+            point = float(np.asarray(points["pair"]))
+            low, high = (float(value) for value in np.asarray(intervals["pair"]).ravel())
+        rows.append(
+            {"algo_x": algo_x, "algo_y": algo_y, "n_envs": len(scores), "probability": point, "ci_low": low, "ci_high": high}
+        )
+    return pd.DataFrame(rows, columns=list(IMPROVEMENT_COLUMNS))
 
 
 def markdown_table(performance: pd.DataFrame) -> str:
