@@ -15,6 +15,8 @@ def make_policy(action_dim=1, **kwargs):
     action_space = spaces.Box(-2.0, 2.0, (action_dim,), np.float32)
     kwargs.setdefault("net_arch", [16])
     kwargs.setdefault("n_intervals", 10)
+    # This module tests the paper's form of the critic; tests/adc/test_critic_designs.py covers the others.
+    kwargs.setdefault("critic_design", "paper")
     return ADCPolicy(observation_space, action_space, ConstantSchedule(1e-3), **kwargs)
 
 

@@ -186,7 +186,7 @@ CRITIC_DESIGNS: tuple[str, ...] = get_args(CriticDesign)
 #: The designs whose advantage has one output per interval (the others evaluate it at the action itself).
 INTERVAL_OUTPUT_DESIGNS = ("paper", "state_value")
 #: The critic design of ``ADC("MlpPolicy", env)`` (chosen by the critic study: docs/results).
-DEFAULT_CRITIC_DESIGN: CriticDesign = "paper"
+DEFAULT_CRITIC_DESIGN: CriticDesign = "legendre"
 #: Degree of the ``"legendre"`` advantage polynomial unless ``basis_degree`` says otherwise.
 DEFAULT_BASIS_DEGREE = 4
 
