@@ -42,11 +42,15 @@ ENVIRONMENTS = {
     "Pendulum-v1": 200_000,
     "sb3_adc/LidarObstacleCourse-v0": 200_000,
     "sb3_adc/LidarObstacleCourseNoisy-v0": 200_000,
+    # Procedural layouts: a new one is drawn and built at every reset (random steering crashes every few dozen
+    # steps, so resets weigh more here than in training).
+    "sb3_adc/LidarObstacleCourse-v1": 50_000,
+    "sb3_adc/LidarObstacleCourseNoisy-v1": 50_000,
     "sb3_adc/HighwayObstacle-v0": 5_000,
 }
 LEVELS = ("core", "gym.make")
-#: The lidar course must reach this many core steps per second.
-LIDAR_TARGET_STEPS_PER_S = 10_000
+#: The kinematic lidar course (``-v0``) must reach this many steps per second behind gym.make's wrappers.
+LIDAR_TARGET_STEPS_PER_S = 20_000
 
 
 def make_env(env_id: str, level: str) -> gym.Env[Any, Any]:
@@ -197,10 +201,10 @@ def main(argv: list[str] | None = None) -> int:
     rows = run(scale=0.01 if args.quick else 1.0, repeats=1 if args.quick else args.repeats)
     print()
     print_table(rows)
-    lidar = next(r for r in rows if r["env_id"] == "sb3_adc/LidarObstacleCourse-v0" and r["level"] == "core")
+    lidar = next(r for r in rows if r["env_id"] == "sb3_adc/LidarObstacleCourse-v0" and r["level"] == "gym.make")
     meets_target = lidar["steps_per_s"] >= LIDAR_TARGET_STEPS_PER_S
     print(
-        f"\nLidar course, core: {lidar['steps_per_s']:,.0f} steps/s (target {LIDAR_TARGET_STEPS_PER_S:,}): "
+        f"\nLidar course, gym.make: {lidar['steps_per_s']:,.0f} steps/s (target {LIDAR_TARGET_STEPS_PER_S:,}): "
         f"{'met' if meets_target else 'NOT met'}"
     )
     if args.quick:

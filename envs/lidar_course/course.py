@@ -28,6 +28,7 @@ aliases, and at most :data:`MAX_COURSE_FILE_BYTES` long.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -379,6 +380,26 @@ def course_from_dict(data: Any, source: str = "<course>", default_name: str = "c
         description=description,
         obstacles=tuple(obstacles),
     )
+
+
+def with_obstacles(course: Course, obstacles: Any) -> Course:
+    """
+    A copy of a validated corridor course with obstacles added, parsed and checked as a course file's ``obstacles``
+    (without validating the corridor again).
+
+    :param course: A course with a ``corridor`` and no obstacles
+    :param obstacles: A list of obstacle mappings, in the format of a course file
+    :raises CourseError: as :func:`course_from_dict`, naming ``obstacles[i]`` and its fields
+    :raises ValueError: if the course has no corridor or already has obstacles
+    """
+    if course.corridor is None or course.obstacles:
+        raise ValueError(f"`course`: {course.name!r} must have a corridor and no obstacles yet.")
+    parsed = _parse_obstacles(course.source, obstacles, course.wall_thickness)
+    for i, obstacle in enumerate(parsed):
+        _check_obstacle_placement(
+            course.source, f"obstacles[{i}]", obstacle, course.walls, course.wall_thickness, course.corridor, [], course.start
+        )
+    return dataclasses.replace(course, obstacles=tuple(parsed))
 
 
 def _check_keys(source: str, field: str, mapping: dict[Any, Any], accepted: tuple[str, ...]) -> None:

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from sb3_adc_envs.lidar_course import geometry
-from sb3_adc_envs.lidar_course.course import Course, CourseError, course_from_dict
+from sb3_adc_envs.lidar_course.course import Course, CourseError, course_from_dict, with_obstacles
 
 #: Draws of a corridor before giving up (a draw is redrawn when the corridor overlaps itself).
 _MAX_SHAPE_DRAWS = 200
@@ -114,19 +114,19 @@ class CourseGenerator:
         :return: A validated course named ``procedural-<layout_seed>``
         """
         rng = np.random.default_rng(layout_seed)
-        data = self._corridor(rng, layout_seed)
-        centerline = np.asarray(data["corridor"]["centerline"])
-        data["obstacles"] = self._obstacles(rng, centerline, float(data["corridor"]["width"]), robot_radius)
+        corridor = self._corridor(rng, layout_seed)
+        assert corridor.corridor is not None
+        obstacles = self._obstacles(rng, corridor.corridor.centerline, corridor.corridor.width, robot_radius)
         while True:
             try:
-                return course_from_dict(data, source=f"<procedural course {layout_seed}>")
+                return with_obstacles(corridor, obstacles)
             except CourseError as error:
                 # An obstacle where the loop passes near the start: leave it out.
                 if not error.field.startswith("obstacles["):
                     raise
-                del data["obstacles"][int(error.field[len("obstacles[") :].split("]")[0])]
+                del obstacles[int(error.field[len("obstacles[") :].split("]")[0])]
 
-    def _corridor(self, rng: np.random.Generator, layout_seed: int) -> dict[str, Any]:
+    def _corridor(self, rng: np.random.Generator, layout_seed: int) -> Course:
         for _ in range(_MAX_SHAPE_DRAWS):
             n = int(rng.integers(self.n_corners[0], self.n_corners[1] + 1))
             step = 2.0 * math.pi / n
@@ -157,10 +157,9 @@ class CourseGenerator:
                 "start": {"x": float(middle[0]), "y": float(middle[1]), "heading_deg": heading},
             }
             try:
-                course_from_dict(data)
+                return course_from_dict(data, source=f"<procedural course {layout_seed}>")
             except CourseError:
                 continue  # the corridor overlaps itself
-            return data
         raise RuntimeError(f"no valid corridor in {_MAX_SHAPE_DRAWS} draws of layout seed {layout_seed}: widen `loop_radius`.")
 
     def _obstacles(

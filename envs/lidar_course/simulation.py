@@ -83,10 +83,10 @@ class CourseSimulation:
             physicsClientId=client,
         )
         pybullet.setCollisionFilterGroupMask(ground, -1, _GROUND_GROUP, 0, physicsClientId=client)
-        #: Body id of the walls (one compound body of a box per wall segment), then of each obstacle (consecutive).
-        self.walls_id = self._create_walls(course.walls, course.wall_thickness)
+        #: Body ids of the wall segments, then of the obstacles (consecutive).
+        self.wall_ids = [self._create_wall(segment, course.wall_thickness) for segment in course.walls]
         self.obstacle_ids = [self._create_obstacle(obstacle) for obstacle in course.obstacles]
-        self._first_wall, self._last_wall = self.walls_id, (self.obstacle_ids or [self.walls_id])[-1]
+        self._first_wall, self._last_wall = self.wall_ids[0], (self.obstacle_ids or self.wall_ids)[-1]
         self.robot_id = pybullet.createMultiBody(
             baseMass=0.0,
             baseCollisionShapeIndex=pybullet.createCollisionShape(
@@ -119,28 +119,25 @@ class CourseSimulation:
         pybullet.setCollisionFilterGroupMask(body, -1, _WALL_GROUP, _ALL_GROUPS, physicsClientId=self._client)
         return int(body)
 
-    def _create_walls(self, segments: np.ndarray, thickness: float) -> int:
-        # One body whose collision shape is an array of boxes: creating a body costs about 0.2 ms in pybullet, and a
-        # course has a few hundred segments; a compound shape keeps a new layout's build to a few milliseconds.
-        x0, y0, x1, y1 = segments.T
-        lengths = np.hypot(x1 - x0, y1 - y0)
-        yaws = np.arctan2(y1 - y0, x1 - x0)
+    def _create_wall(self, segment: np.ndarray, thickness: float) -> int:
+        x0, y0, x1, y1 = (float(value) for value in segment)
+        length = math.hypot(x1 - x0, y1 - y0)
+        yaw = math.atan2(y1 - y0, x1 - x0)
         # Half a thickness longer at both ends, so that the walls of a polyline overlap at its joints.
-        half_extents = np.column_stack(
-            [lengths / 2.0 + thickness / 2.0, np.full_like(lengths, thickness / 2.0), np.full_like(lengths, WALL_HEIGHT / 2.0)]
-        )
-        positions = np.column_stack([(x0 + x1) / 2.0, (y0 + y1) / 2.0, np.full_like(lengths, WALL_HEIGHT / 2.0)])
-        orientations = np.column_stack([np.zeros_like(yaws), np.zeros_like(yaws), np.sin(yaws / 2.0), np.cos(yaws / 2.0)])
-        shape = pybullet.createCollisionShapeArray(
-            [pybullet.GEOM_BOX] * len(segments),
-            halfExtents=half_extents.tolist(),
-            collisionFramePositions=positions.tolist(),
-            collisionFrameOrientations=orientations.tolist(),
+        shape = pybullet.createCollisionShape(
+            pybullet.GEOM_BOX,
+            halfExtents=[length / 2.0 + thickness / 2.0, thickness / 2.0, WALL_HEIGHT / 2.0],
             physicsClientId=self._client,
         )
-        walls = pybullet.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=shape, physicsClientId=self._client)
-        pybullet.setCollisionFilterGroupMask(walls, -1, _WALL_GROUP, _ALL_GROUPS, physicsClientId=self._client)
-        return int(walls)
+        wall = pybullet.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=shape,
+            basePosition=[(x0 + x1) / 2.0, (y0 + y1) / 2.0, WALL_HEIGHT / 2.0],
+            baseOrientation=[0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)],
+            physicsClientId=self._client,
+        )
+        pybullet.setCollisionFilterGroupMask(wall, -1, _WALL_GROUP, _ALL_GROUPS, physicsClientId=self._client)
+        return int(wall)
 
     @property
     def client_id(self) -> int | None:

@@ -17,7 +17,13 @@ import sb3_adc
 from sb3_adc import ADC, EpsilonGaussianNoise
 from sb3_adc_envs.registration import ENV_SPECS
 
-ENV_IDS = ["sb3_adc/LidarObstacleCourse-v0", "sb3_adc/LidarObstacleCourseNoisy-v0", "sb3_adc/HighwayObstacle-v0"]
+ENV_IDS = [
+    "sb3_adc/LidarObstacleCourse-v0",
+    "sb3_adc/LidarObstacleCourseNoisy-v0",
+    "sb3_adc/LidarObstacleCourse-v1",
+    "sb3_adc/LidarObstacleCourseNoisy-v1",
+    "sb3_adc/HighwayObstacle-v0",
+]
 TINY = {
     ADC: {"net_arch": {"pi": [8], "qf": [8]}, "n_intervals": 10, "value_net_arch": [4]},
     DDPG: {"net_arch": {"pi": [8], "qf": [8]}},
@@ -31,6 +37,9 @@ def test_the_environments_are_registered():
         assert env_id in gym.registry
     assert gym.spec("sb3_adc/LidarObstacleCourse-v0").max_episode_steps == 500
     assert gym.spec("sb3_adc/LidarObstacleCourseNoisy-v0").max_episode_steps == 500
+    assert gym.spec("sb3_adc/LidarObstacleCourse-v1").max_episode_steps == 500
+    assert gym.spec("sb3_adc/LidarObstacleCourseNoisy-v1").max_episode_steps == 500
+    assert gym.spec("sb3_adc/HighwayObstacle-v0").max_episode_steps == 200
 
 
 def test_importing_sb3_adc_imports_neither_pybullet_nor_highway_env():

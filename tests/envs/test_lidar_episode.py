@@ -128,3 +128,23 @@ def test_reset_restarts_at_the_start_pose_after_a_collision(box_course):
     assert not info["collision"]
     assert len(env.trajectory) == 1
     env.close()
+
+
+@pytest.mark.parametrize("course", ["training", "unseen_slalom", "procedural"])
+def test_the_robot_never_leaves_the_course(course):
+    # Random steering meets a wall within a few dozen steps; a broad phase that misses walls lets the robot
+    # drive through them and away, which the clearance of every position would show.
+    env = LidarObstacleCourseEnv(course=course)
+    env.action_space.seed(0)
+    env.reset(seed=0)
+    collisions = 0
+    for _ in range(800):
+        _, _, terminated, _, _ = env.step(env.action_space.sample())
+        x, y, _ = env.pose
+        assert env.course.clearance(x, y) > -env.course.wall_thickness, env.pose
+        assert env.course.corridor is None or env.course.clearance(x, y) < env.course.corridor.width
+        if terminated:
+            collisions += 1
+            env.reset()
+    assert collisions > 5
+    env.close()

@@ -124,5 +124,5 @@ def test_a_new_layout_rebuilds_the_world_the_lidar_sees():
     assert first_obstacles == len(env.course.obstacles) > 0
     env.reset(options={"layout_seed": 2})
     assert len(env.simulation.obstacle_ids) == len(env.course.obstacles)
-    assert env.simulation.walls_id < min(env.simulation.obstacle_ids)
+    assert len(env.simulation.wall_ids) == len(env.course.walls)
     env.close()
