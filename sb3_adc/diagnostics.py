@@ -119,6 +119,22 @@ def _stack_observations(observations: list[Any]) -> np.ndarray | dict[str, np.nd
     return np.stack(observations)
 
 
+def _check_positive_int(name: str, value: object) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"`{name}` must be an integer >= 1, got {value!r}")
+
+
+def _check_evaluation_options(n_eval_episodes: object, truncation_tolerance: object) -> None:
+    """Raise ``ValueError`` naming the option of :func:`evaluate_critic` that is invalid."""
+    _check_positive_int("n_eval_episodes", n_eval_episodes)
+    if (
+        isinstance(truncation_tolerance, bool)
+        or not isinstance(truncation_tolerance, (int, float))
+        or not 0 < truncation_tolerance <= 1
+    ):
+        raise ValueError(f"`truncation_tolerance` must be a number in (0, 1], got {truncation_tolerance!r}")
+
+
 def evaluate_critic(
     model: BaseAlgorithm,
     env: gym.Env | VecEnv,
@@ -130,8 +146,9 @@ def evaluate_critic(
     first critic network (``critic.q1_forward``, at the scaled action) and ``G_t`` the discounted Monte-Carlo return
     with the model's ``gamma`` (the TD3 paper's over-estimation measure, Fujimoto et al., 2018, Figure 1).
 
-    Episodes cut by a time limit make ``G_t`` short of the true return by ``gamma^H V(s_T)``, ``H`` steps before
-    the cut: the end of a truncated episode is biased towards under-estimating the return. So the statistics are
+    Episodes cut by a time limit make ``G_t`` miss ``gamma^H V(s_T)`` of the return the critic learns (SB3
+    bootstraps through time limits), ``H`` steps before the cut: near the end of a truncated episode ``G_t`` is far
+    from that return (too high where values are negative, as on Pendulum, too low where positive). So the statistics are
     taken over the first part of each truncated episode, the steps with ``gamma^H <= truncation_tolerance`` (all
     steps of an episode that terminated); an episode too short for any such step contributes its first step only.
     ``eval/mc_truncation_weight``, the mean ``gamma^H`` of the steps used, bounds what the cut can hide:
@@ -148,6 +165,7 @@ def evaluate_critic(
     :return: ``eval/critic_bias`` (mean ``Q - G``), ``eval/critic_bias_abs`` (mean ``|Q - G|``),
         ``eval/mc_return_mean``, ``eval/q_mean`` and ``eval/mc_truncation_weight``, over the steps used
     """
+    _check_evaluation_options(n_eval_episodes, truncation_tolerance)
     _check_td3_family(model)
     if not isinstance(env, VecEnv):
         env = DummyVecEnv([lambda: env])  # type: ignore[list-item, return-value]
@@ -301,11 +319,6 @@ def batch_diagnostics(model: BaseAlgorithm, batch_size: int | None = None) -> di
     return results
 
 
-def _check_positive_int(name: str, value: object) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise ValueError(f"`{name}` must be an integer >= 1, got {value!r}")
-
-
 class CriticDiagnosticsCallback(BaseCallback):
     """
     Log the critic diagnostics of a TD3-family model (ADC, TD3, DDPG, SplitRateDDPG) during training.
@@ -346,16 +359,11 @@ class CriticDiagnosticsCallback(BaseCallback):
     ):
         super().__init__(verbose)
         _check_positive_int("eval_freq", eval_freq)
-        _check_positive_int("n_eval_episodes", n_eval_episodes)
         _check_positive_int("log_freq", log_freq)
         if batch_size is not None:
             _check_positive_int("batch_size", batch_size)
-        if (
-            isinstance(truncation_tolerance, bool)
-            or not isinstance(truncation_tolerance, (int, float))
-            or not 0 < truncation_tolerance <= 1
-        ):
-            raise ValueError(f"`truncation_tolerance` must be a number in (0, 1], got {truncation_tolerance!r}")
+        # Checked here too, so that a bad option fails before training rather than at the first evaluation.
+        _check_evaluation_options(n_eval_episodes, truncation_tolerance)
         if isinstance(eval_env, str):
             eval_env = make_vec_env(eval_env, n_envs=1)
         elif not isinstance(eval_env, VecEnv):

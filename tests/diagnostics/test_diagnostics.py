@@ -271,6 +271,14 @@ def test_invalid_options_name_the_parameter(kwargs: dict[str, Any], name: str) -
         CriticDiagnosticsCallback(pendulum(), **kwargs)
 
 
+def test_evaluate_critic_checks_its_options() -> None:
+    model = tiny_model(TD3, pendulum())
+    with pytest.raises(ValueError, match="`truncation_tolerance`"):
+        evaluate_critic(model, pendulum(), truncation_tolerance=-0.1)
+    with pytest.raises(ValueError, match="`n_eval_episodes`"):
+        evaluate_critic(model, pendulum(), n_eval_episodes=0)
+
+
 def test_models_outside_the_td3_family_are_refused() -> None:
     callback = CriticDiagnosticsCallback(pendulum())
     with pytest.raises(TypeError, match="TD3-family"):
