@@ -290,25 +290,58 @@ def plot_trajectories(episodes_by_model: dict[str, list[Episode]], title: str, p
 
 def plot_learning_curves(results_dir: Path, path: Path) -> None:
     """
-    Every run's checkpoint evaluations on the training course (mean steps without a collision, out of 500), in
-    one figure: ``<results_dir>/*/learning_curve.csv``.
+    Checkpoint evaluations on the training course (mean steps without a collision, out of 500), aggregated per
+    configuration (a run folder ``<config>_seed<N>``): the mean over its seeds with a 95% stratified-bootstrap CI
+    when it has several, each run as a thin line. Read from ``<results_dir>/*/learning_curve.csv``.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import pandas as pd
 
-    fig, ax = plt.subplots(figsize=(7.0, 3.6))
+    from sb3_adc.experiment.plots import display_name
+    from sb3_adc.experiment.statistics import learning_curves
+
+    frames = []
     for curve_csv in sorted(results_dir.glob("*/learning_curve.csv")):
-        with curve_csv.open() as stream:
-            rows = list(csv.DictReader(stream))
-        steps = [int(r["timesteps"]) for r in rows]
-        ax.plot(steps, [float(r["mean_steps"]) for r in rows], marker="o", markersize=3, label=curve_csv.parent.name)
+        config, _, seed = curve_csv.parent.name.rpartition("_seed")
+        frame = pd.read_csv(curve_csv)
+        frames.append(frame.assign(algo=config, env="training course", seed=int(seed), mean_return=frame["mean_steps"]))
+    evaluations = pd.concat(frames, ignore_index=True)
+    curves = learning_curves(evaluations, reps=2000, seed=0)
+
+    def label(config: str) -> str:
+        algo, _, variant = config.partition("_")
+        return display_name(algo) + (", paper Table 2" if variant == "table2" else "")
+
+    fig, ax = plt.subplots(figsize=(7.5, 3.8))
+    colors = plt.get_cmap("tab10")
+    for index, (config, curve) in enumerate(curves.groupby("algo", sort=True)):
+        color = colors(index % 10)
+        runs = evaluations[evaluations["algo"] == config]
+        for _, run in runs.groupby("seed"):
+            ax.plot(run["timesteps"], run["mean_steps"], color=color, linewidth=0.6, alpha=0.35)
+        n_runs = int(curve["n_runs"].iloc[0])
+        ax.plot(
+            curve["timesteps"],
+            curve["mean"],
+            color=color,
+            marker="o",
+            markersize=3,
+            label=f"{label(str(config))} ({n_runs} run{'s' if n_runs > 1 else ''})",
+        )
+        if n_runs > 1:
+            ax.fill_between(curve["timesteps"], curve["mean_ci_low"], curve["mean_ci_high"], color=color, alpha=0.2)
     ax.axhline(MAX_STEPS, color="0.5", linewidth=0.8, linestyle=":")
     ax.set_xlabel("training steps")
     ax.set_ylabel("mean steps without collision")
     ax.set_ylim(0, MAX_STEPS * 1.05)
-    ax.set_title("Checkpoint evaluations on the training course (10 jittered episodes each)", fontsize=10)
+    ax.set_title(
+        "Checkpoint evaluations on the training course (10 jittered episodes each):\n"
+        "mean over seeds with its 95% bootstrap CI; thin lines: each run",
+        fontsize=9,
+    )
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)

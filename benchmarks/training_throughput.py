@@ -138,21 +138,36 @@ def write_csv(rows: list[dict[str, Any]], path: Path) -> None:
 
 
 def plot(rows: list[dict[str, Any]], path: Path) -> None:
+    """Per algorithm and setting: the median throughput (marker), the range over the repeats (whiskers), each repeat (dots)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 3.2))
+    fig, ax = plt.subplots(figsize=(9, 3.4))
     y = np.arange(len(rows))
-    ax.barh(y - 0.2, [r["ddpg_steps_per_s"] for r in rows], height=0.4, label="SB3 DDPG", color="#888888")
-    ax.barh(y + 0.2, [r["adc_steps_per_s"] for r in rows], height=0.4, label="ADC", color="#d95f02")
+    repeats = len(rows[0]["ddpg_runs"])
+    for offset, label, key, color in ((-0.15, "SB3 DDPG", "ddpg", "#666666"), (0.15, "ADC", "adc", "#d95f02")):
+        medians = np.array([r[f"{key}_steps_per_s"] for r in rows])
+        runs = [np.asarray(r[f"{key}_runs"], dtype=float) for r in rows]
+        whiskers = np.array([medians - [run.min() for run in runs], [run.max() for run in runs] - medians])
+        ax.errorbar(medians, y + offset, xerr=whiskers, fmt="D", color=color, capsize=4, label=f"{label} (median, min-max)")
+        for i, run in enumerate(runs):
+            ax.plot(run, np.full(len(run), y[i] + offset), "o", color=color, markersize=3, alpha=0.5)
     for i, r in enumerate(rows):
-        ax.text(r["adc_steps_per_s"], i + 0.2, f"  x{r['ratio_adc_over_ddpg']:.2f}", va="center")
+        top = max(max(r["adc_runs"]), max(r["ddpg_runs"]))
+        ax.text(top * 1.08, i, f"ADC / DDPG = {r['ratio_adc_over_ddpg']:.2f}", va="center", fontsize="small")
     ax.set_yticks(y, [r["setting"] for r in rows])
-    ax.set_xlabel("training throughput (env steps/s, one update per step)")
-    ax.legend(loc="lower right")
-    ax.set_xlim(0, max(max(r["ddpg_steps_per_s"], r["adc_steps_per_s"]) for r in rows) * 1.2)
+    ax.set_ylim(-0.6, len(rows) - 0.4)
+    # The settings differ ten-fold in speed: a log axis shows each one's spread.
+    ax.set_xscale("log")
+    lowest = min(min(min(r["adc_runs"]), min(r["ddpg_runs"])) for r in rows)
+    highest = max(max(max(r["adc_runs"]), max(r["ddpg_runs"])) for r in rows)
+    ax.set_xlim(lowest * 0.8, highest * 2.2)
+    ax.set_xlabel("training throughput (env steps/s, one update per step; log scale)")
+    ax.set_title(f"{repeats} repeats per point, alternating algorithms; dots: each repeat", fontsize="small")
+    ax.grid(alpha=0.3, axis="x", which="both")
+    ax.legend(loc="lower right", fontsize="small")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
