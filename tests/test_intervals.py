@@ -3,7 +3,7 @@
 import pytest
 import torch as th
 
-from sb3_adc.adc.intervals import UniformIntervalPartition, aggregate, validate_interval_options
+from sb3_adc.adc.intervals import MAX_N_INTERVALS, UniformIntervalPartition, aggregate, validate_interval_options
 
 
 @pytest.mark.parametrize("n_intervals", [2, 7, 100])
@@ -158,7 +158,7 @@ def test_max_aggregation_gradient_reaches_the_best_interval():
     assert advantages.grad.tolist() == [[[0.0, -1.0, 0.0, 1.0]]]
 
 
-@pytest.mark.parametrize("bad", [1, 0, -3, 2.5, "10", True, None])
+@pytest.mark.parametrize("bad", [1, 0, -3, 2.5, "10", True, None, MAX_N_INTERVALS + 1, 10**5])
 def test_invalid_n_intervals_is_rejected(bad):
     with pytest.raises(ValueError, match="n_intervals"):
         validate_interval_options(bad, "mean", "none")
@@ -171,3 +171,55 @@ def test_invalid_aggregation_and_interpolation_list_accepted_values():
         validate_interval_options(10, "median", "none")
     with pytest.raises(ValueError, match=r"advantage_interpolation.*'none', 'linear'.*'cubic'"):
         validate_interval_options(10, "mean", "cubic")
+
+
+def test_n_intervals_bound_is_named_in_the_error():
+    with pytest.raises(ValueError, match=rf"`n_intervals` must be an integer >= 2 .* and <= {MAX_N_INTERVALS}.*got 100000"):
+        UniformIntervalPartition(10**5)
+
+
+def test_partition_memory_is_linear_in_n_intervals():
+    # The weights are written per sample, never read from an n x n table (10**4 intervals used to take 3 GB).
+    partition = UniformIntervalPartition(MAX_N_INTERVALS)
+    assert sum(buffer.numel() for buffer in partition.buffers()) <= 3 * MAX_N_INTERVALS + 1
+    actions = th.tensor([[-1.0], [0.0], [0.99]])
+    weights = partition.q_weights(actions, None, "mean", "none")
+    assert weights.shape == (3, 1 + MAX_N_INTERVALS)
+    index = partition.index(actions).view(-1)
+    assert index[0] == 0
+    assert index[2] > index[1] > 0
+    assert weights[th.arange(3), 1 + index].tolist() == pytest.approx([1 - 1 / MAX_N_INTERVALS] * 3)
+    assert weights.sum().item() == pytest.approx(3.0, abs=1e-3)  # the value's weight; the centred ones sum to 0
+    table = th.arange(MAX_N_INTERVALS, dtype=th.float32).unsqueeze(1)
+    assert partition.read_rows(table, actions, "none").view(-1).tolist() == index.float().tolist()
+
+
+@pytest.mark.parametrize("action_dim", [1, 3])
+@pytest.mark.parametrize("interpolation", ["none", "linear"])
+@pytest.mark.parametrize("aggregation", ["mean", "max"])
+def test_q_weights_are_one_then_the_centred_weights_of_the_equations(action_dim, interpolation, aggregation):
+    n = 6
+    partition = UniformIntervalPartition(n)
+    th.manual_seed(0)
+    actions = th.rand(32, action_dim) * 2.2 - 1.1
+    advantages = th.randn(32, action_dim, n)
+    eye = th.eye(n)
+    if interpolation == "none":
+        selection = eye[partition.index(actions)]
+    else:
+        position = ((actions + 1) * n / 2 - 0.5).clamp(0, n - 1)
+        lower = position.floor().clamp(max=n - 2).long()
+        share = (position - lower).unsqueeze(-1)
+        selection = eye[lower] * (1 - share) + eye[lower + 1] * share
+    centre = 1.0 / n if aggregation == "mean" else eye[advantages.argmax(dim=-1)]
+    expected = th.cat([th.ones(32, 1), (selection - centre).flatten(1)], dim=1)
+    weights = partition.q_weights(actions, advantages, aggregation, interpolation)
+    assert th.allclose(weights, expected, atol=1e-6)
+    assert th.allclose(partition.selection_weights(actions, interpolation), selection, atol=1e-6)
+
+
+def test_weights_follow_the_module_dtype():
+    partition = UniformIntervalPartition(5).double()
+    actions = th.tensor([[0.3]], dtype=th.float64)
+    assert partition.q_weights(actions, None, "mean", "none").dtype == th.float64
+    assert partition.centred_weights(actions, None, "mean", "none").dtype == th.float64

@@ -160,3 +160,46 @@ def test_dummy_vec_env_with_one_env_and_predict_batch():
     action, state = model.predict(obs, deterministic=True)
     assert action.shape == (1, 1)
     assert state is None
+
+
+def learning_rates(model):
+    return model.actor.optimizer.param_groups[0]["lr"], model.critic.optimizer.param_groups[0]["lr"]
+
+
+@pytest.mark.parametrize("algorithm", ["adc", "split_rate_ddpg"])
+def test_replacing_lr_schedule_on_a_live_model_moves_the_default_critic_rate(algorithm):
+    # SB3's tests (and users fine-tuning a model) assign `model.lr_schedule`; with critic_learning_rate=None the
+    # critic's rate is defined from the actor's at every point, so it must follow the new schedule.
+    from sb3_adc.baselines import SplitRateDDPG
+
+    if algorithm == "adc":
+        model, factor = ADC("MlpPolicy", "Pendulum-v1", learning_rate=1e-3, policy_kwargs=TINY, **FAST), 2.0
+    else:
+        ddpg_kwargs = dict(policy_kwargs=dict(net_arch=[16]), **FAST)
+        model, factor = SplitRateDDPG("MlpPolicy", "Pendulum-v1", learning_rate=1e-3, **ddpg_kwargs), 1.0
+    model.learn(60)
+    assert learning_rates(model) == pytest.approx((1e-3, factor * 1e-3))
+    model.lr_schedule = lambda progress: 4e-4 * (1 + progress)
+    model.learn(60, reset_num_timesteps=False)
+    actor_lr, critic_lr = learning_rates(model)
+    assert 4e-4 <= actor_lr < 8e-4
+    assert critic_lr == pytest.approx(factor * actor_lr)
+    # Frozen learning (SB3's test_cnn does this): neither network moves.
+    model.lr_schedule = lambda _: 0.0
+    critic_before = [p.detach().clone() for p in model.critic.parameters()]
+    model.train(gradient_steps=1, batch_size=16)
+    assert learning_rates(model) == (0.0, 0.0)
+    for before, after in zip(critic_before, model.critic.parameters(), strict=True):
+        assert th.equal(before, after)
+
+
+def test_an_explicit_critic_rate_stays_when_lr_schedule_is_replaced():
+    model = ADC("MlpPolicy", "Pendulum-v1", learning_rate=1e-3, critic_learning_rate=5e-3, policy_kwargs=TINY, **FAST)
+    model.lr_schedule = lambda _: 1e-4
+    model.learn(60)
+    assert learning_rates(model) == pytest.approx((1e-4, 5e-3))
+    # Assigning the critic's schedule sets `critic_learning_rate`, which is saved with the model.
+    model.critic_lr_schedule = 7e-4
+    model.learn(60, reset_num_timesteps=False)
+    assert learning_rates(model) == pytest.approx((1e-4, 7e-4))
+    assert model.critic_learning_rate == 7e-4

@@ -2,8 +2,6 @@ from __future__ import annotations
 
 import io
 import pathlib
-import pickle
-import zipfile
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
@@ -19,6 +17,7 @@ from torch.nn import functional as F
 
 from sb3_adc.adc.policies import ADCPolicy, CnnPolicy, DuelingIntervalCritic, MlpPolicy, MultiInputPolicy
 from sb3_adc.common.critic_learning_rate import TD3WithCriticLearningRate
+from sb3_adc.common.model_files import check_parameter_shapes, model_file_error, model_file_errors
 from sb3_adc.common.schedules import ScaledSchedule
 from sb3_adc.common.spaces import check_action_space
 
@@ -97,7 +96,6 @@ class ADC(TD3WithCriticLearningRate):
     policy: ADCPolicy
     critic: DuelingIntervalCritic  # type: ignore[assignment]
     critic_target: DuelingIntervalCritic  # type: ignore[assignment]
-    critic_lr_schedule: Schedule
 
     def __init__(
         self,
@@ -283,19 +281,22 @@ class ADC(TD3WithCriticLearningRate):
     ) -> None:
         """
         Load parameters from a zip file or a dictionary of state dicts (see SB3's ``set_parameters``), after
-        checking that they were made with this model's ``n_intervals``.
+        checking that they were made by an ADC model with this model's ``n_intervals`` and tensor shapes (the
+        same spaces and network sizes). Errors are :class:`~sb3_adc.common.model_files.ModelFileError`, a
+        ``ValueError`` that is also the type SB3 raises (a ``RuntimeError`` for tensors of another shape).
 
         :param load_path_or_dict: Location of the saved data, or a dictionary of state dicts
         :param exact_match: If True, the given parameters must include every parameter of every module
         :param device: Device on which the code should run.
         """
         if isinstance(load_path_or_dict, dict):
-            self._check_interval_count(load_path_or_dict)
-            super().set_parameters(load_path_or_dict, exact_match=exact_match, device=device)
+            params = load_path_or_dict
         else:
-            _, params, _ = load_from_zip_file(load_path_or_dict, device=device, load_data=False)
-            self._check_interval_count(params)
-            super().set_parameters(params, exact_match=exact_match, device=device)
+            with model_file_errors(load_path_or_dict, "ADC"):
+                _, params, _ = load_from_zip_file(load_path_or_dict, device=device, load_data=False)
+        self._check_interval_count(params)
+        check_parameter_shapes(self, params)
+        super().set_parameters(params, exact_match=exact_match, device=device)
 
     def _check_interval_count(self, params: dict[str, Any]) -> None:
         policy_state = params.get("policy")
@@ -304,14 +305,14 @@ class ADC(TD3WithCriticLearningRate):
         edges = policy_state.get("critic.partition.edges")
         if edges is None:
             if any(key.startswith("critic.") for key in policy_state):
-                raise ValueError(
+                raise model_file_error(
                     "The parameters were not saved by an ADC model (no dueling interval critic found); "
                     "load them with the class of the algorithm that saved them."
                 )
             return
         saved = int(edges.shape[0]) - 1
         if saved != self.policy.n_intervals:
-            raise ValueError(
+            raise model_file_error(
                 f"`n_intervals` mismatch: the saved critic has n_intervals={saved}, this model has "
                 f"n_intervals={self.policy.n_intervals}. Build the model with policy_kwargs=dict(n_intervals={saved})."
             )
@@ -330,9 +331,12 @@ class ADC(TD3WithCriticLearningRate):
         """
         Load an ADC model from a zip file (see SB3's ``BaseAlgorithm.load``).
 
-        Errors name the file: a file that is not an SB3 model archive, one saved by another algorithm, or one
-        whose action or observation space, or ``n_intervals``, does not match ``env`` or the given policy
-        options raises ``ValueError``.
+        Errors name the file. A file that is not an SB3 model archive, is damaged, was saved by another
+        algorithm, or whose action or observation space, or ``n_intervals``, does not match ``env`` or the given
+        policy options raises :class:`~sb3_adc.common.model_files.ModelFileError`: a ``ValueError`` that is also
+        the type SB3 raises in the same situation (``KeyError``, ``EOFError``, ``RuntimeError``, ``TypeError``...).
+        A missing file raises ``FileNotFoundError`` naming ``path``; an ``env`` whose action space ADC cannot act
+        in raises :class:`~sb3_adc.common.spaces.ActionSpaceError` (an ``AssertionError``, as in SB3).
 
         :param path: path to the file (or a file-like) where to load the agent from
         :param env: the new environment to run the loaded model on (can be None if you only need prediction
@@ -346,7 +350,7 @@ class ADC(TD3WithCriticLearningRate):
         """
         if env is not None:
             check_action_space(env.action_space)
-        try:
+        with model_file_errors(path, "ADC"):
             return super().load(
                 path,
                 env=env,
@@ -356,12 +360,3 @@ class ADC(TD3WithCriticLearningRate):
                 force_reset=force_reset,
                 **kwargs,
             )
-        except (zipfile.BadZipFile, EOFError, pickle.UnpicklingError, KeyError, RuntimeError, AssertionError) as error:
-            cause = error.__context__
-            if isinstance(error, KeyError) and isinstance(cause, ValueError):
-                # SB3's loader retries a failed parameter load as an old DQN file and fails on a missing key:
-                # report the original failure.
-                raise ValueError(f"Cannot load the ADC model {path!s}: {cause}") from cause
-            raise ValueError(f"{path!s} is not a readable ADC model file: {type(error).__name__}: {error}") from error
-        except (ValueError, TypeError) as error:
-            raise type(error)(f"Cannot load the ADC model {path!s}: {error}") from error

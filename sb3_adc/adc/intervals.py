@@ -11,8 +11,9 @@ stream outputs one value per interval, and the Q-value of an action ``a`` uses t
 
 The centred advantage is linear in the vector of interval advantages: ``A(s, z_a) - mean_z A(s, z)`` is the
 dot product of ``A(s, .)`` with the weights ``e_{z_a} - 1/n`` (``e_k`` the k-th unit vector), and with
-``e_{z_a} - e_{argmax}`` for the max. The code computes it that way: one weight vector per sample, read from a
-precomputed table, then a product and a sum, which is the cheapest form for autograd.
+``e_{z_a} - e_{argmax}`` for the max. The code computes it that way: one weight vector per sample, written by a
+scatter into a filled tensor (no ``n x n`` table: memory is linear in ``n``), then a product and a sum, which is
+the cheapest form for autograd.
 
 Actions are SB3's scaled actions in ``[-1, 1]``. With several action dimensions the advantage is factorised:
 one branch of ``n`` intervals per dimension, each branch centred on its own, and the centred branches summed.
@@ -33,14 +34,27 @@ AGGREGATIONS: tuple[str, ...] = get_args(Aggregation)
 INTERPOLATIONS: tuple[str, ...] = get_args(Interpolation)
 
 
+#: Largest accepted ``n_intervals``. The critic's advantage output layer has ``action_dim * n_intervals`` units, and
+#: every training sample carries weights over all of them: 10 000 intervals per action dimension (a resolution of
+#: 0.0002 of the action range) already cost about 40 kB per sample and dimension.
+MAX_N_INTERVALS = 10_000
+
+
 def check_n_intervals(n_intervals: object) -> None:
     """
-    Raise ``ValueError`` unless ``n_intervals`` is an integer >= 2.
+    Raise ``ValueError`` unless ``n_intervals`` is an integer from 2 to :data:`MAX_N_INTERVALS`.
 
     :param n_intervals: Number of uniform intervals per action dimension
     """
-    if isinstance(n_intervals, bool) or not isinstance(n_intervals, int) or n_intervals < 2:
-        raise ValueError(f"`n_intervals` must be an integer >= 2 (one advantage per interval), got {n_intervals!r}.")
+    if (
+        isinstance(n_intervals, bool)
+        or not isinstance(n_intervals, int)
+        or not 2 <= n_intervals <= MAX_N_INTERVALS
+    ):
+        raise ValueError(
+            f"`n_intervals` must be an integer >= 2 (one advantage per interval) and <= {MAX_N_INTERVALS} "
+            f"(MAX_N_INTERVALS), got {n_intervals!r}."
+        )
 
 
 def validate_interval_options(n_intervals: object, aggregation: object, advantage_interpolation: object) -> None:
@@ -68,35 +82,33 @@ class UniformIntervalPartition(nn.Module):
     end interval. The edges are a buffer: they travel with the state dict, which lets a loaded model
     be checked against the ``n_intervals`` it was saved with.
 
-    :param n_intervals: Number of intervals (>= 2)
+    :param n_intervals: Number of intervals (from 2 to :data:`MAX_N_INTERVALS`); the module's memory is linear in it
     """
 
     edges: th.Tensor
     centres: th.Tensor
     _inner_edges: th.Tensor
-    _unit_vectors: th.Tensor
-    _mean_centred_unit_vectors: th.Tensor
-    _value_and_mean_centred_unit_vectors: th.Tensor
 
     def __init__(self, n_intervals: int):
         super().__init__()
         check_n_intervals(n_intervals)
         self.n_intervals = n_intervals
         edges = th.linspace(-1.0, 1.0, n_intervals + 1)
-        unit_vectors = th.eye(n_intervals)
         self.register_buffer("edges", edges)
         self.register_buffer("centres", (edges[:-1] + edges[1:]) / 2, persistent=False)
         self.register_buffer("_inner_edges", edges[1:-1].contiguous(), persistent=False)
-        self.register_buffer("_unit_vectors", unit_vectors, persistent=False)
-        self.register_buffer("_mean_centred_unit_vectors", unit_vectors - 1.0 / n_intervals, persistent=False)
-        self.register_buffer(
-            "_value_and_mean_centred_unit_vectors",
-            th.cat([th.ones(n_intervals, 1), unit_vectors - 1.0 / n_intervals], dim=1),
-            persistent=False,
-        )
 
     def extra_repr(self) -> str:
         return f"n_intervals={self.n_intervals}"
+
+    def _filled(self, shape: tuple[int, ...], value: float, dtype: th.dtype | None = None) -> th.Tensor:
+        """A new tensor of ``shape`` filled with ``value``, on the partition's device (and dtype by default)."""
+        return th.full(shape, value, dtype=dtype or self.edges.dtype, device=self.edges.device)
+
+    def _one_hot(self, index: th.Tensor, on: float = 1.0, off: float = 0.0) -> th.Tensor:
+        """``(*index.shape, n_intervals)``: ``on`` at each index, ``off`` elsewhere (the rows of ``(on - off) I + off``
+        that ``index`` selects, without the ``n x n`` table)."""
+        return self._filled((*index.shape, self.n_intervals), off).scatter_(-1, index.unsqueeze(-1), on)
 
     def index(self, actions: th.Tensor) -> th.Tensor:
         """
@@ -121,10 +133,13 @@ class UniformIntervalPartition(nn.Module):
         :return: ``(batch, action_dim, n_intervals)``, each row non-negative and summing to 1
         """
         if interpolation == "none":
-            return _rows(self._unit_vectors, self.index(actions))
+            return self._one_hot(self.index(actions))
         lower, upper_share = self._neighbour_centres(actions)
         upper_share = upper_share.unsqueeze(-1)
-        return _rows(self._unit_vectors, lower) * (1.0 - upper_share) + _rows(self._unit_vectors, lower + 1) * upper_share
+        lower = lower.unsqueeze(-1)
+        weights = self._filled((*lower.shape[:-1], self.n_intervals), 0.0, upper_share.dtype)
+        # Differentiable in the action through the shares (scatter passes the gradient of its source).
+        return weights.scatter(-1, lower, 1.0 - upper_share).scatter(-1, lower + 1, upper_share)
 
     def _neighbour_centres(self, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
         """The interval centres on either side of each action: the lower one's index, and the upper one's share
@@ -154,15 +169,15 @@ class UniformIntervalPartition(nn.Module):
         :return: ``(batch, action_dim, n_intervals)``
         """
         if aggregation == "mean" and interpolation == "none":
-            # The paper's case, in one lookup: e_{z_a} - 1/n.
-            return _rows(self._mean_centred_unit_vectors, self.index(actions))
+            # The paper's case, in one scatter: e_{z_a} - 1/n.
+            return self._one_hot(self.index(actions), on=1.0 - 1.0 / self.n_intervals, off=-1.0 / self.n_intervals)
         weights = self.selection_weights(actions, interpolation)
         if aggregation == "mean":
             return weights - 1.0 / self.n_intervals
         if advantages is None:
             raise ValueError('`advantages` are needed to centre on their maximum (aggregation="max").')
         # The gradient of max_z A is the unit vector of the arg max.
-        return weights - _rows(self._unit_vectors, advantages.detach().argmax(dim=-1))
+        return weights - self._one_hot(advantages.detach().argmax(dim=-1))
 
     def read_rows(self, table: th.Tensor, actions: th.Tensor, interpolation: Interpolation) -> th.Tensor:
         """
@@ -205,8 +220,11 @@ class UniformIntervalPartition(nn.Module):
         :return: ``(batch, 1 + action_dim * n_intervals)``
         """
         if aggregation == "mean" and interpolation == "none" and actions.shape[1] == 1:
-            # The paper's case, in one lookup: [1 | e_{z_a} - 1/n].
-            return self._value_and_mean_centred_unit_vectors.index_select(0, self.index(actions).view(-1))
+            # The paper's case, in one scatter: [1 | e_{z_a} - 1/n].
+            n = self.n_intervals
+            weights = self._filled((actions.shape[0], 1 + n), -1.0 / n)
+            weights[:, 0] = 1.0
+            return weights.scatter_(1, self.index(actions).view(-1, 1) + 1, 1.0 - 1.0 / n)
         return F.pad(self.centred_weights(actions, advantages, aggregation, interpolation).flatten(1), (1, 0), value=1.0)
 
     def select(self, advantages: th.Tensor, actions: th.Tensor, interpolation: Interpolation) -> th.Tensor:
@@ -219,11 +237,6 @@ class UniformIntervalPartition(nn.Module):
         :return: ``(batch, action_dim)``
         """
         return (advantages * self.selection_weights(actions, interpolation)).sum(dim=-1)
-
-
-def _rows(table: th.Tensor, index: th.Tensor) -> th.Tensor:
-    """``table[index]`` for a 2-D table and an integer index of any shape (``index_select``: faster than indexing)."""
-    return table.index_select(0, index.flatten()).view(*index.shape, table.shape[1])
 
 
 def aggregate(value: th.Tensor, advantages: th.Tensor, centred_weights: th.Tensor) -> th.Tensor:

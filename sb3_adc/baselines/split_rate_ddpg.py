@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Any
+import io
+import pathlib
+from typing import Any, TypeVar
 
 import torch as th
 from stable_baselines3 import DDPG
@@ -11,7 +13,11 @@ from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from stable_baselines3.td3.policies import TD3Policy
 
+from sb3_adc.adc.policies import ADCPolicy
 from sb3_adc.common.critic_learning_rate import TD3WithCriticLearningRate
+from sb3_adc.common.model_files import model_file_errors
+
+SelfSplitRateDDPG = TypeVar("SelfSplitRateDDPG", bound="SplitRateDDPG")
 
 
 class SplitRateDDPG(TD3WithCriticLearningRate, DDPG):
@@ -21,6 +27,10 @@ class SplitRateDDPG(TD3WithCriticLearningRate, DDPG):
     SB3's :class:`~stable_baselines3.DDPG` uses one learning rate for both networks; the ADC paper's DDPG and
     vanilla actor-critic baselines use an actor rate ``a`` and a critic rate ``c = 2a`` (Tables 1-3). With
     ``critic_learning_rate=None`` (the default) this class is SB3's DDPG, update for update.
+
+    Unlike SB3's DDPG, it refuses an :class:`~sb3_adc.adc.policies.ADCPolicy` (SB3's ``DDPG.load`` of an ADC
+    model file silently builds and trains the ADC policy), and its ``load`` errors name the file (see
+    :meth:`sb3_adc.ADC.load`).
 
     :param policy: The policy model to use (MlpPolicy, CnnPolicy, ...)
     :param env: The environment to learn from (if registered in Gym, can be str)
@@ -99,3 +109,47 @@ class SplitRateDDPG(TD3WithCriticLearningRate, DDPG):
         self.critic_learning_rate = critic_learning_rate
         if _init_setup_model:
             self._setup_model()
+
+    def _setup_model(self) -> None:
+        if isinstance(self.policy_class, type) and issubclass(self.policy_class, ADCPolicy):
+            raise TypeError(
+                f"`policy` must be a DDPG (TD3Policy) policy, got the ADC policy {self.policy_class.__name__}. "
+                "(Loading a model file saved by ADC? Load it with sb3_adc.ADC.load.)"
+            )
+        super()._setup_model()
+
+    @classmethod
+    def load(
+        cls: type[SelfSplitRateDDPG],
+        path: str | pathlib.Path | io.BufferedIOBase,
+        env: GymEnv | None = None,
+        device: th.device | str = "auto",
+        custom_objects: dict[str, Any] | None = None,
+        print_system_info: bool = False,
+        force_reset: bool = True,
+        **kwargs: Any,
+    ) -> SelfSplitRateDDPG:
+        """
+        Load a model from a zip file (see SB3's ``BaseAlgorithm.load``), with errors that name the file:
+        :class:`~sb3_adc.common.model_files.ModelFileError` (a ``ValueError`` that is also the type SB3 raises),
+        among them a ``TypeError`` for a file saved by ADC; ``FileNotFoundError`` naming ``path``.
+
+        :param path: path to the file (or a file-like) where to load the agent from
+        :param env: the new environment to run the loaded model on (can be None if you only need prediction)
+        :param device: Device on which the code should run.
+        :param custom_objects: Dictionary of objects to replace upon loading
+        :param print_system_info: Whether to print system info from the saved model
+        :param force_reset: Force call to ``reset()`` before training to avoid unexpected behavior
+        :param kwargs: extra arguments to change the model when loading
+        :return: new model instance with loaded parameters
+        """
+        with model_file_errors(path, cls.__name__):
+            return super().load(
+                path,
+                env=env,
+                device=device,
+                custom_objects=custom_objects,
+                print_system_info=print_system_info,
+                force_reset=force_reset,
+                **kwargs,
+            )

@@ -6,6 +6,24 @@ import numpy as np
 from gymnasium import spaces
 
 
+class ActionSpaceError(AssertionError):
+    """
+    An action space the algorithm cannot act in.
+
+    SB3 rejects such spaces with ``assert`` (``supported_action_spaces`` and the finite-bounds check of
+    ``BaseAlgorithm``), so code written against SB3 catches ``AssertionError``; the subclasses are also the
+    built-in type that says what is wrong (``TypeError`` or ``ValueError``).
+    """
+
+
+class UnsupportedActionSpaceError(ActionSpaceError, TypeError):
+    """The action space is not a :class:`gymnasium.spaces.Box` (an ``AssertionError`` and a ``TypeError``)."""
+
+
+class ActionBoundsError(ActionSpaceError, ValueError):
+    """The bounds of a ``Box`` action space are infinite, NaN or empty (an ``AssertionError`` and a ``ValueError``)."""
+
+
 def check_action_space(action_space: spaces.Space) -> None:
     """
     Raise an error unless ``action_space`` is a bounded, finite :class:`gymnasium.spaces.Box`.
@@ -14,24 +32,26 @@ def check_action_space(action_space: spaces.Space) -> None:
     into uniform intervals, so the range must be continuous and finite.
 
     :param action_space: The environment's action space
-    :raises TypeError: if it is not a ``Box`` (for instance ``Discrete`` or ``MultiDiscrete``)
-    :raises ValueError: if a bound is infinite or NaN, or ``high <= low`` somewhere
+    :raises UnsupportedActionSpaceError: if it is not a ``Box`` (for instance ``Discrete`` or ``MultiDiscrete``);
+        an ``AssertionError``, as SB3 raises, and a ``TypeError``
+    :raises ActionBoundsError: if a bound is infinite or NaN, or ``high <= low`` somewhere; an ``AssertionError``,
+        as SB3 raises, and a ``ValueError``
     """
     if not isinstance(action_space, spaces.Box):
         hint = ""
         if isinstance(action_space, (spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary)):
             hint = " For discrete actions use a value-based method such as SB3's DQN."
-        raise TypeError(
+        raise UnsupportedActionSpaceError(
             f"`action_space` must be a continuous gymnasium.spaces.Box with finite bounds, got {action_space!r}.{hint}"
         )
     low, high = np.asarray(action_space.low), np.asarray(action_space.high)
     if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
-        raise ValueError(
+        raise ActionBoundsError(
             f"`action_space` must have finite bounds (the critic partitions [low, high] into intervals), "
             f"got low={low.tolist()}, high={high.tolist()}. Rescale the actions to a finite range, "
             "e.g. with gymnasium.wrappers.RescaleAction or ClipAction."
         )
     if np.any(high <= low):
-        raise ValueError(
+        raise ActionBoundsError(
             f"`action_space` must have high > low in every dimension, got low={low.tolist()}, high={high.tolist()}."
         )

@@ -1,0 +1,174 @@
+"""
+Loading model files: errors that name the file and say what is wrong, catchable where SB3's errors are.
+
+SB3's ``load`` and ``set_parameters`` let the error of whichever step failed through (a ``KeyError`` of a
+missing archive entry, an ``EOFError`` or ``RuntimeError`` of a truncated one, a raw torch size mismatch, a
+``FileNotFoundError`` that names ``x.zip.zip`` for a missing ``x.zip``). Our algorithms raise a
+:class:`ModelFileError` instead: a ``ValueError`` whose message names the file, raised as a subclass that is
+also the type SB3 raises in the same situation, so that code written against SB3 keeps working.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import io
+import os
+import pathlib
+import pickle
+import zipfile
+import zlib
+from collections.abc import Iterator, Mapping
+from typing import Any
+
+import torch as th
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.save_util import recursive_getattr
+
+#: The errors SB3's loader lets through from a damaged or foreign archive: the zip reader's, the unpickler's and
+#: torch's errors on a truncated entry, a missing entry, and SB3's own assertions on the archive's content.
+_DAMAGED_FILE_ERRORS = (
+    zipfile.BadZipFile,
+    zlib.error,
+    EOFError,
+    pickle.UnpicklingError,
+    KeyError,
+    RuntimeError,
+    AssertionError,
+)
+
+
+class ModelFileError(ValueError):
+    """
+    A model file (or a dictionary of parameters) that cannot be loaded into the model asked for.
+
+    It is raised as a subclass that is also the type of the error SB3 raises in the same situation (for
+    instance ``KeyError``, ``EOFError`` or ``RuntimeError``): ``except ValueError`` and SB3's ``except`` clauses
+    both catch it. ``catchable_as`` is that type (``ValueError`` when SB3 raises one too).
+    """
+
+    catchable_as: type[Exception] = ValueError
+
+    def __str__(self) -> str:
+        # KeyError quotes its message; a ModelFileError reads the same whatever type it is also.
+        return str(self.args[0]) if self.args else ""
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # The subclasses are made at run time: rebuild one from its message and the type it is also.
+        return model_file_error, (str(self), self.catchable_as)
+
+
+#: The subclasses made so far, by the type they are also (one class per type, so that ``type(a) is type(b)``).
+_ERROR_CLASSES: dict[type[Exception], type[ModelFileError]] = {}
+
+
+def _error_class(catchable_as: type[Exception]) -> type[ModelFileError]:
+    if issubclass(ModelFileError, catchable_as):
+        return ModelFileError
+    if catchable_as not in _ERROR_CLASSES:
+        _ERROR_CLASSES[catchable_as] = _make_error_class(catchable_as)
+    return _ERROR_CLASSES[catchable_as]
+
+
+def _make_error_class(catchable_as: type[Exception]) -> type[ModelFileError]:
+    try:
+        return type(
+            "ModelFileError",
+            (ModelFileError, catchable_as),
+            {"__module__": __name__, "__qualname__": "ModelFileError", "catchable_as": catchable_as},
+        )
+    except TypeError:  # a built-in layout that cannot be combined with ValueError's
+        return ModelFileError
+
+
+def model_file_error(message: str, catchable_as: type[Exception] = ValueError) -> ModelFileError:
+    """
+    A :class:`ModelFileError` with ``message`` that is also an instance of ``catchable_as``.
+
+    :param message: What is wrong, naming the file
+    :param catchable_as: The type of the error SB3 raises in the same situation
+    :return: The error, to be raised
+    """
+    try:
+        return _error_class(catchable_as)(message)
+    except TypeError:  # an exception type whose constructor needs more than a message
+        return ModelFileError(message)
+
+
+def _describe(path: str | pathlib.Path | io.BufferedIOBase) -> str:
+    return str(path) if isinstance(path, (str, os.PathLike)) else repr(path)
+
+
+def missing_model_file(path: str | os.PathLike[str], algorithm: str) -> FileNotFoundError:
+    """
+    The error for a model file that does not exist, naming the path given (SB3 names the last one it tried:
+    ``x.zip.zip`` for ``x.zip``).
+
+    :param path: The path given to ``load`` or ``set_parameters``
+    :param algorithm: Name of the algorithm, for the message
+    :return: The error, to be raised
+    """
+    tried = f"{path} (nor {path}.zip)" if pathlib.Path(path).suffix != ".zip" else str(path)
+    return FileNotFoundError(errno.ENOENT, f"No {algorithm} model file at {tried}")
+
+
+@contextlib.contextmanager
+def model_file_errors(path: str | pathlib.Path | io.BufferedIOBase, algorithm: str) -> Iterator[None]:
+    """
+    Turn the errors of loading ``path`` into a :class:`ModelFileError` (or a ``FileNotFoundError``) whose
+    message names the file, catchable as the error SB3 raises.
+
+    :param path: The file given to ``load`` or ``set_parameters``
+    :param algorithm: Name of the algorithm loading it, for the messages
+    """
+    name = _describe(path)
+    try:
+        yield
+    except ModelFileError:
+        raise
+    except FileNotFoundError as error:
+        if isinstance(path, (str, os.PathLike)) and not os.path.exists(path):
+            raise missing_model_file(path, algorithm) from error
+        raise
+    except _DAMAGED_FILE_ERRORS as error:
+        cause = error.__context__
+        if isinstance(error, KeyError) and isinstance(cause, ValueError):
+            # SB3's loader retries a failed parameter load as an old DQN file and fails on a missing key:
+            # report the original failure.
+            raise model_file_error(f"Cannot load the {algorithm} model {name}: {cause}", KeyError) from cause
+        message = f"{name} is not a readable {algorithm} model file: {type(error).__name__}: {error}"
+        raise model_file_error(message, type(error)) from error
+    except (ValueError, TypeError) as error:
+        raise model_file_error(f"Cannot load the {algorithm} model {name}: {error}", type(error)) from error
+
+
+def check_parameter_shapes(model: BaseAlgorithm, params: Mapping[str, Any]) -> None:
+    """
+    Raise a :class:`ModelFileError` (also a ``RuntimeError``, as torch's size mismatch is) when a tensor of
+    ``params`` (the modules' state dicts, as ``get_parameters`` returns) has another shape than the model's, for
+    instance parameters saved for another number of action dimensions.
+
+    :param model: The model the parameters are to be loaded into
+    :param params: Module name to state dict
+    """
+    mismatches = []
+    for module_name, state in params.items():
+        try:
+            module = recursive_getattr(model, module_name)
+        except AttributeError:
+            continue  # SB3 reports unknown names
+        if not isinstance(module, th.nn.Module) or not isinstance(state, Mapping):
+            continue
+        own = module.state_dict()
+        for key, tensor in state.items():
+            if key in own and isinstance(tensor, th.Tensor) and tensor.shape != own[key].shape:
+                mismatches.append(f"`{module_name}.{key}` {tuple(tensor.shape)} vs {tuple(own[key].shape)}")
+    if mismatches:
+        shown = "; ".join(mismatches[:3]) + ("; ..." if len(mismatches) > 3 else "")
+        raise model_file_error(
+            f"The parameters do not fit this {type(model).__name__} model ({len(mismatches)} tensor(s) of "
+            f"another shape, saved vs this model: {shown}). This model has action space {model.action_space} "
+            f"and observation space {model.observation_space}: parameters load only into a model built for the "
+            "same spaces and network sizes.",
+            RuntimeError,
+        )
