@@ -2,13 +2,44 @@
 
 from __future__ import annotations
 
+import reprlib
+from typing import Any
+
+#: Longest representation of an offending value or expression shown in an error message (characters).
+MAX_SHOWN_CHARACTERS = 200
+
+_SHORT_REPR = reprlib.Repr()
+_SHORT_REPR.maxlevel = 3
+_SHORT_REPR.maxstring = 60
+_SHORT_REPR.maxother = 60
+
+
+def short_repr(value: Any) -> str:
+    """
+    A bounded representation of ``value`` for an error message: at most 3 levels and a few elements of nested
+    collections, then at most :data:`MAX_SHOWN_CHARACTERS` characters. Unlike ``repr``, its cost does not grow with
+    the value: a YAML alias bomb (a few hundred bytes whose collections share children) is not expanded.
+
+    :param value: The value to show
+    """
+    if isinstance(value, str):  # an expression as written: shown whole up to the limit
+        return _shorten(repr(value))
+    return _shorten(_SHORT_REPR.repr(value))
+
+
+def _shorten(text: str) -> str:
+    if len(text) <= MAX_SHOWN_CHARACTERS:
+        return text
+    half = MAX_SHOWN_CHARACTERS // 2
+    return f"{text[:half]}...{text[-half:]}"
+
 
 class HyperparamsError(ValueError):
     """
     A hyperparameter file or one of its values is invalid.
 
     The message names where the problem is (``source``: the file and, when known, the entry), the key,
-    and the offending value or expression, then says what is accepted.
+    and the offending value or expression (shortened to :data:`MAX_SHOWN_CHARACTERS`), then says what is accepted.
 
     :param source: Where the value comes from: a file path, optionally followed by ``[entry]``
         (for example ``hyperparams/adc.yml [Pendulum-v1]``), or ``command line``
@@ -24,5 +55,5 @@ class HyperparamsError(ValueError):
         self.problem = problem
         self.expression = expression
         location = source if key is None else f"{source}: `{key}`"
-        offending = "" if expression is None else f"; offending expression: {expression!r}"
+        offending = "" if expression is None else f"; offending expression: {short_repr(expression)}"
         super().__init__(f"{location}: {problem}{offending}")

@@ -21,7 +21,7 @@ import ast
 from typing import Any
 
 from sb3_adc.config.allowlists import EXPRESSION_NAMES, AllowList
-from sb3_adc.config.errors import HyperparamsError
+from sb3_adc.config.errors import HyperparamsError, short_repr
 
 #: Longest expression accepted (characters).
 MAX_EXPRESSION_LENGTH = 10_000
@@ -70,7 +70,7 @@ class _RestrictedEvaluator:
 
     def reject(self, node: ast.AST, problem: str) -> HyperparamsError:
         segment = ast.get_source_segment(self.text, node) or self.text
-        context = "" if segment == self.text else f" in {self.text!r}"
+        context = "" if segment == self.text else f" in {short_repr(self.text)}"
         return HyperparamsError(self.source, self.key, f"{problem}{context}", expression=segment)
 
     def evaluate(self, node: ast.AST) -> Any:
@@ -156,4 +156,7 @@ def parse_expression(text: str, source: str, key: str, names: AllowList = EXPRES
             "and allow-listed names such as nn.ReLU",
             expression=text,
         ) from None
+    except (RecursionError, MemoryError):
+        # Python's parser gives up on operators or attribute chains nested some thousand levels deep.
+        raise HyperparamsError(source, key, "expression nested too deeply", expression=text) from None
     return _RestrictedEvaluator(text.strip(), source, key, names).evaluate(tree.body)

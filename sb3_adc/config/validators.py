@@ -12,13 +12,13 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from sb3_adc.config.errors import HyperparamsError
+from sb3_adc.config.errors import HyperparamsError, short_repr
 
 Validator = Callable[[Any, str, str], Any]
 
 
 def _fail(value: Any, source: str, key: str, accepted: str) -> HyperparamsError:
-    return HyperparamsError(source, key, f"expected {accepted}, got {value!r} ({type(value).__name__})")
+    return HyperparamsError(source, key, f"expected {accepted}, got {short_repr(value)} ({type(value).__name__})")
 
 
 def _as_number(value: Any) -> float | None:

@@ -233,7 +233,7 @@ def test_unknown_env_id_lists_the_file_entries(tmp_path):
         ("Pendulum-v1:\n  policy: !!python/name:os.system\n", "Python tags are not accepted"),
         ("Pendulum-v1: [1, 2]\n", "an entry must be a mapping"),
         ("- Pendulum-v1\n", "expected a mapping of environment ids"),
-        ("Pendulum-v1: {gamma: [0.9\n", "not a valid YAML file"),
+        ("Pendulum-v1: {gamma: [0.9\n", "file is not valid YAML"),
     ],
 )
 def test_bad_files(tmp_path, text, problem):
