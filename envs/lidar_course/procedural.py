@@ -84,6 +84,9 @@ class CourseGenerator:
         _check_range("n_obstacles", self.n_obstacles, 0, integer=True)
         for name in ("loop_radius", "width", "corner_radius", "cylinder_radius", "box_side"):
             _check_range(name, getattr(self, name), 1e-6)
+        for name in ("n_corners", "n_obstacles", "loop_radius", "width", "corner_radius", "cylinder_radius", "box_side"):
+            # Tuples, also when given as lists (from a YAML file): a generator is hashable, a key of the layout cache.
+            object.__setattr__(self, name, tuple(getattr(self, name)))
         for name in ("gap_margin", "obstacle_spacing", "start_clearance", "wall_thickness"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0.0):

@@ -126,3 +126,13 @@ def test_a_new_layout_rebuilds_the_world_the_lidar_sees():
     assert len(env.simulation.obstacle_ids) == len(env.course.obstacles)
     assert len(env.simulation.wall_ids) == len(env.course.walls)
     env.close()
+
+
+def test_a_generator_given_lists_behaves_as_one_given_tuples():
+    from_lists = CourseGenerator(width=[1.4, 1.6], n_obstacles=[2, 3])
+    assert from_lists == CourseGenerator(width=(1.4, 1.6), n_obstacles=(2, 3))
+    env = LidarObstacleCourseEnv(course="procedural", generator=from_lists)
+    env.reset(seed=1)
+    assert 1.4 <= env.course.corridor.width <= 1.6
+    assert 2 <= len(env.course.obstacles) <= 3
+    env.close()
