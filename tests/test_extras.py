@@ -200,3 +200,16 @@ def test_sb3_adc_plot_without_rliable_says_which_extra(monkeypatch, tmp_path, ca
     assert "sb3-adc plot: error: the package 'rliable' (needed by the benchmark " in stderr
     assert 'pip install "sb3-adc[experiment]"' in stderr
     assert not (tmp_path / "plots").exists()
+
+
+def test_the_extras_helper_imports_without_torch():
+    # So that the environments (which must not import torch) can guard their simulators' imports with it.
+    script = (
+        "import sys, sb3_adc, sb3_adc.extras; "
+        "heavy = [name for name in ('torch', 'stable_baselines3') if name in sys.modules]; "
+        "from sb3_adc import ADC; "
+        "print(heavy, ADC.__module__)"
+    )
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=False)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["[]", "sb3_adc.adc.adc"]
