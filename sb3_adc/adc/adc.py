@@ -15,7 +15,14 @@ from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, PyTorch
 from stable_baselines3.common.utils import polyak_update
 from torch.nn import functional as F
 
-from sb3_adc.adc.policies import ADCPolicy, CnnPolicy, DuelingIntervalCritic, MlpPolicy, MultiInputPolicy
+from sb3_adc.adc.policies import (
+    DEFAULT_CRITIC_DESIGN,
+    ADCPolicy,
+    CnnPolicy,
+    DuelingIntervalCritic,
+    MlpPolicy,
+    MultiInputPolicy,
+)
 from sb3_adc.common.critic_learning_rate import TD3WithCriticLearningRate
 from sb3_adc.common.model_files import check_parameter_shapes, model_file_error, model_file_errors
 from sb3_adc.common.schedules import ScaledSchedule
@@ -169,6 +176,8 @@ class ADC(TD3WithCriticLearningRate):
                 f"{self.policy_class!r}. (Loading a model file saved by another algorithm? Load it with that "
                 "algorithm's class.)"
             )
+        # Record the critic design in the saved policy_kwargs, so that a file keeps its design if the default changes.
+        self.policy_kwargs = {"critic_design": DEFAULT_CRITIC_DESIGN, **self.policy_kwargs}
         super()._setup_model()
         # Parameter lists of the per-step updates, gathered once rather than at every gradient step.
         self._actor_parameters = list(self.actor.parameters())
@@ -355,8 +364,31 @@ class ADC(TD3WithCriticLearningRate):
                 path,
                 env=env,
                 device=device,
-                custom_objects=custom_objects,
+                custom_objects=_design_of_files_without_one(path, custom_objects),
                 print_system_info=print_system_info,
                 force_reset=force_reset,
                 **kwargs,
             )
+
+
+def _design_of_files_without_one(
+    path: str | pathlib.Path | io.BufferedIOBase, custom_objects: dict[str, Any] | None
+) -> dict[str, Any] | None:
+    """
+    ``custom_objects`` that load a file saved before ``critic_design`` existed with the critic it holds, the paper's
+    (``critic_design="paper"``), rather than with today's default.
+
+    :param path: The model file, or a file-like (read, then rewound)
+    :param custom_objects: The caller's ``custom_objects``; returned unchanged when they set ``policy_kwargs``
+    """
+    if custom_objects is not None and "policy_kwargs" in custom_objects:
+        return custom_objects
+    position = path.tell() if isinstance(path, io.BufferedIOBase) else None
+    data, _, _ = load_from_zip_file(path, custom_objects=custom_objects, device="cpu", print_system_info=False)
+    if position is not None:
+        assert isinstance(path, io.BufferedIOBase)
+        path.seek(position)
+    policy_kwargs = (data or {}).get("policy_kwargs")
+    if not isinstance(policy_kwargs, dict) or "critic_design" in policy_kwargs:
+        return custom_objects
+    return {**(custom_objects or {}), "policy_kwargs": {**policy_kwargs, "critic_design": "paper"}}

@@ -152,8 +152,11 @@ ENV_WRAPPERS = AllowList(
 CALLBACKS = AllowList(
     "callback",
     {
-        f"stable_baselines3.common.callbacks.{name}": f"stable_baselines3.common.callbacks:{name}"
-        for name in ("CheckpointCallback", "StopTrainingOnMaxEpisodes", "LogEveryNTimesteps")
+        **{
+            f"stable_baselines3.common.callbacks.{name}": f"stable_baselines3.common.callbacks:{name}"
+            for name in ("CheckpointCallback", "StopTrainingOnMaxEpisodes", "LogEveryNTimesteps")
+        },
+        "sb3_adc.diagnostics.CriticDiagnosticsCallback": "sb3_adc.diagnostics:CriticDiagnosticsCallback",
     },
 )
 

@@ -226,3 +226,21 @@ def test_hyperparameter_entries_accept_the_design_keys():
     assert config.model_kwargs["policy_kwargs"] == {"critic_design": "legendre", "basis_degree": 3}
     with pytest.raises(HyperparamsError, match="critic_design"):
         resolve_entry("adc", "Pendulum-v1", {**entry, "critic_design": "dueling"}, "my.yml [Pendulum-v1]")
+
+
+def test_files_saved_before_critic_design_existed_load_with_the_paper_critic(tmp_path):
+    model = ADC("MlpPolicy", "Pendulum-v1", policy_kwargs=dict(net_arch=[16], n_intervals=8, critic_design="paper"), seed=0)
+    # A file of an earlier version: its policy_kwargs do not name the design, and its critic is the paper's.
+    model.policy_kwargs = {key: value for key, value in model.policy_kwargs.items() if key != "critic_design"}
+    model.save(tmp_path / "old")
+    loaded = ADC.load(tmp_path / "old")
+    assert loaded.critic.critic_design == "paper"
+    with open(tmp_path / "old.zip", "rb") as stream:
+        assert ADC.load(stream).critic.critic_design == "paper"
+
+
+def test_the_default_design_is_recorded_in_the_saved_file(tmp_path):
+    model = ADC("MlpPolicy", "Pendulum-v1", policy_kwargs=dict(net_arch=[16], n_intervals=8), seed=0)
+    assert model.policy_kwargs["critic_design"] == model.critic.critic_design
+    model.save(tmp_path / "new")
+    assert ADC.load(tmp_path / "new").critic.critic_design == model.critic.critic_design

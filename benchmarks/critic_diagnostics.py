@@ -1,0 +1,108 @@
+"""
+Critic diagnostics of ADC's designs, DDPG and TD3 on the noisy Pendulum: what the critic study's numbers come from.
+
+Each configuration of :mod:`critic_study` trains on the benchmark engine with
+:class:`~sb3_adc.diagnostics.CriticDiagnosticsCallback` added through its hyperparameter entry (``callback:``), on
+the tuning seeds only (the fresh seeds of the study stay unseen). The callback logs the critic's bias against
+discounted Monte-Carlo returns of deterministic evaluation rollouts, the actor-gradient and ``dQ/da`` norms and,
+for ADC, the visits of each action interval and the roughness of the advantage across neighbouring intervals.
+
+The runs go to ``benchmarks/runs/critic_diagnostics/`` (not committed); a table of the last record of each run to
+``benchmarks/results/critic_diagnostics/``, the histories of the runs next to it, and the figure to
+``docs/_static/benchmarks/critic_diagnostics.png``.
+
+Usage::
+
+    python benchmarks/critic_diagnostics.py --workers 2
+    python benchmarks/critic_diagnostics.py --quick
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import torch as th
+from critic_study import CONFIGS, report
+
+from sb3_adc.diagnostics import ARRAY_KEYS, load_history, plot_diagnostics
+from sb3_adc.experiment.benchmark import BenchmarkSettings, run_benchmark
+
+ROOT = Path(__file__).resolve().parent
+RUNS_DIR = ROOT / "runs" / "critic_diagnostics"
+RESULTS_DIR = ROOT / "results" / "critic_diagnostics"
+DOCS_STATIC = ROOT.parent / "docs" / "_static" / "benchmarks"
+ENV_ID = "sb3_adc/NoisyPendulum-v1"
+DEFAULT_CONFIGS = ["adc_paper", "adc_legendre", "ddpg", "td3"]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--configs", nargs="+", choices=sorted(CONFIGS), default=DEFAULT_CONFIGS)
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1], help="tuning seeds (0-4)")
+    parser.add_argument("-n", "--n-timesteps", type=int, default=20_000, help="budget of every run")
+    parser.add_argument("--workers", type=int, default=1, help="parallel runs")
+    parser.add_argument("--quick", action="store_true", help="smoke run: 1 seed, 1500 steps, results in *_quick")
+    args = parser.parse_args()
+    th.set_num_threads(1)
+    suffix = "_quick" if args.quick else ""
+    seeds = args.seeds[:1] if args.quick else args.seeds
+    n_timesteps = 1500 if args.quick else args.n_timesteps
+    every = max(n_timesteps // 10, 1)
+    output = RESULTS_DIR.with_name(RESULTS_DIR.name + suffix)
+    start = time.perf_counter()
+    histories: dict[str, list[list[dict]]] = {}
+    rows = []
+    for name in args.configs:
+        algo, overrides = CONFIGS[name]
+        folder = RUNS_DIR.with_name(RUNS_DIR.name + suffix) / name
+        runs = []
+        for seed in seeds:
+            # One grid per seed: each run writes its diagnostics to its own folder.
+            history_dir = folder / f"diagnostics_seed{seed}"
+            callback = {
+                "sb3_adc.diagnostics.CriticDiagnosticsCallback": {
+                    "eval_env": ENV_ID,
+                    "eval_freq": every,
+                    "log_freq": every,
+                    "n_eval_episodes": 5,
+                    "save_path": str(history_dir),
+                }
+            }
+            settings = BenchmarkSettings(
+                algos=[algo],
+                env_ids=[ENV_ID],
+                seeds=[seed],
+                log_folder=str(folder),
+                n_timesteps=n_timesteps,
+                overrides={**overrides, "callback": callback},
+                device="cpu",
+            )
+            result = run_benchmark(settings, workers=args.workers, report=report)
+            if result.failures:
+                raise SystemExit(f"{name}, seed {seed} failed; re-run to retry it")
+            history = load_history(str(history_dir))
+            runs.append(history)
+            output.mkdir(parents=True, exist_ok=True)
+            shutil.copy(history_dir / "critic_diagnostics.csv", output / f"{name}_seed{seed}.csv")
+            last = {key: value for record in history for key, value in record.items() if key not in ARRAY_KEYS}
+            rows.append({"config": name, "seed": seed, **last})
+        histories[name] = runs
+    table = pd.DataFrame(rows)
+    table.to_csv(output / "last_records.csv", index=False)
+    summary = table.drop(columns=["seed"]).groupby("config", sort=False).mean(numeric_only=True)
+    summary.to_csv(output / "summary.csv")
+    figure = DOCS_STATIC / f"critic_diagnostics{suffix}.png"
+    figure.parent.mkdir(parents=True, exist_ok=True)
+    plot_diagnostics(histories, str(figure), title=f"Critic diagnostics on {ENV_ID} (tuning seeds {seeds})")
+    print(f"wall time {time.perf_counter() - start:.0f} s")
+    with pd.option_context("display.width", 200, "display.max_columns", 20):
+        print(summary.replace({np.nan: None}))
+
+
+if __name__ == "__main__":
+    main()
