@@ -1,0 +1,72 @@
+"""
+A pytest plugin that runs Stable-Baselines3's own TD3 tests against ADC (used by ``test_sb3_td3_suite.py``).
+
+Loaded with ``-p td3_as_adc`` before SB3's test modules are imported, it rebinds ``stable_baselines3.TD3`` to
+:class:`sb3_adc.ADC`, so that ``from stable_baselines3 import TD3`` in those modules, their parametrizations
+included, get ADC. It then keeps only the tests that exercise TD3 (ADC): those parametrized with it, and the
+unparametrized ones whose code names ``TD3``; every other algorithm's tests are deselected, as are those of
+:data:`NOT_APPLICABLE` (each with the reason it cannot apply to ADC) and, unless ``SB3_ADC_SB3_SUITE=all``, the
+slow ones of :data:`SLOW`.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import pytest
+import stable_baselines3
+import stable_baselines3.td3
+from stable_baselines3.common.base_class import BaseAlgorithm
+
+from sb3_adc import ADC
+
+stable_baselines3.TD3 = ADC
+stable_baselines3.td3.TD3 = ADC
+
+#: SB3 TD3 tests that do not apply to ADC (node id as pytest prints it, with ``TD3`` read as ``ADC``): the reason.
+#: Empty: every SB3 TD3 test of the modules run applies to ADC and passes.
+NOT_APPLICABLE: dict[str, str] = {}
+
+#: Tests that pass but take most of the run time (image observations, a model of over 2 GB, 180 gradient steps):
+#: deselected unless ``SB3_ADC_SB3_SUITE=all``, to keep the default run near a minute. Node id prefix: reason.
+SLOW: dict[str, str] = {
+    "tests/test_save_load.py::test_save_load_large_model": "saves and loads a model of over 2 GB",
+    "tests/test_save_load.py::test_save_load_env_cnn": "trains a CNN policy on images",
+    "tests/test_save_load.py::test_save_load_policy[False-CnnPolicy": "trains a CNN policy on images",
+    "tests/test_save_load.py::test_save_load_policy[True-CnnPolicy": "trains a CNN policy on images",
+    "tests/test_save_load.py::test_warn_buffer": "180 gradient steps at batch size 256, for a warning of SB3's buffer",
+}
+RUN_ALL = os.environ.get("SB3_ADC_SB3_SUITE") == "all"
+
+
+def _exercises_td3(item: pytest.Item) -> bool:
+    callspec = getattr(item, "callspec", None)
+    parameters: list[Any] = list(callspec.params.values()) if callspec is not None else []
+    algorithms = [value for value in parameters if isinstance(value, type) and issubclass(value, BaseAlgorithm)]
+    if algorithms:
+        return ADC in algorithms
+    if any(isinstance(value, str) and value.lower() == "td3" for value in parameters):
+        return True  # a test parametrized by algorithm name (test_tensorboard.py)
+    code = getattr(getattr(item, "function", None), "__code__", None)
+    return code is not None and "TD3" in code.co_names
+
+
+def _is_slow(item: pytest.Item) -> bool:
+    return not RUN_ALL and any(item.nodeid.startswith(prefix) for prefix in SLOW)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    kept = [item for item in items if _exercises_td3(item) and item.nodeid not in NOT_APPLICABLE and not _is_slow(item)]
+    deselected = [item for item in items if item not in kept]
+    if deselected:
+        config.hook.pytest_deselected(items=deselected)
+    items[:] = kept
+
+
+def pytest_report_header(config: pytest.Config) -> list[str]:
+    lines = ["stable_baselines3.TD3 is sb3_adc.ADC; only the tests that exercise it run"]
+    lines += [f"not applicable to ADC: {node}: {reason}" for node, reason in NOT_APPLICABLE.items()]
+    if not RUN_ALL:
+        lines += [f"slow, run with SB3_ADC_SB3_SUITE=all: {node}: {reason}" for node, reason in SLOW.items()]
+    return lines
