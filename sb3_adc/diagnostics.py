@@ -278,8 +278,9 @@ def advantage_roughness(advantages: th.Tensor) -> dict[str, float]:
         returns them
     :return: ``train/advantage_neighbour_diff``, the mean ``|A(z + 1) - A(z)|`` over neighbours, and
         ``train/advantage_roughness``, that divided by the advantage's standard deviation over the intervals
-        (averaged over the batch and branches): scale-free, 0 for an advantage constant in ``z``, about
-        ``sqrt(12) / n_intervals`` for one linear in ``z`` and about ``2 / sqrt(pi) = 1.13`` for independent noise
+        (averaged over the batch and branches): scale-free, 0 for an advantage constant in ``z``,
+        ``sqrt(12 / (n^2 - 1))`` (about ``3.5 / n``) for one linear in ``z`` over ``n`` intervals and about
+        ``2 / sqrt(pi) = 1.13`` for independent noise
     """
     neighbour_diff = float((advantages[..., 1:] - advantages[..., :-1]).abs().mean())
     spread = float(advantages.std(dim=-1, correction=0).mean())
