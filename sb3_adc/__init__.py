@@ -17,6 +17,7 @@ from sb3_adc_envs.registration import register_envs
 if TYPE_CHECKING:
     from sb3_adc.adc import ADC, ADCPolicy, DuelingIntervalCritic
     from sb3_adc.common.noise import EpsilonGaussianNoise
+    from sb3_adc.diagnostics import CriticDiagnosticsCallback
 
 register_envs()
 
@@ -29,6 +30,7 @@ _LAZY_NAMES = {
     "ADCPolicy": "sb3_adc.adc",
     "DuelingIntervalCritic": "sb3_adc.adc",
     "EpsilonGaussianNoise": "sb3_adc.common.noise",
+    "CriticDiagnosticsCallback": "sb3_adc.diagnostics",
 }
 
 
@@ -44,4 +46,4 @@ def __dir__() -> list[str]:
     return sorted([*globals(), *_LAZY_NAMES])
 
 
-__all__ = ["ADC", "ADCPolicy", "DuelingIntervalCritic", "EpsilonGaussianNoise", "__version__"]
+__all__ = ["ADC", "ADCPolicy", "CriticDiagnosticsCallback", "DuelingIntervalCritic", "EpsilonGaussianNoise", "__version__"]
