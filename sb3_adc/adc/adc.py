@@ -26,7 +26,7 @@ from sb3_adc.adc.policies import (
 from sb3_adc.common.critic_learning_rate import TD3WithCriticLearningRate
 from sb3_adc.common.model_files import check_parameter_shapes, model_file_error, model_file_errors
 from sb3_adc.common.schedules import ScaledSchedule
-from sb3_adc.common.spaces import check_action_space
+from sb3_adc.common.spaces import ActionSpaceError, check_action_space
 
 SelfADC = TypeVar("SelfADC", bound="ADC")
 
@@ -345,7 +345,7 @@ class ADC(TD3WithCriticLearningRate):
         policy options raises :class:`~sb3_adc.common.model_files.ModelFileError`: a ``ValueError`` that is also
         the type SB3 raises in the same situation (``KeyError``, ``EOFError``, ``RuntimeError``, ``TypeError``...).
         A missing file raises ``FileNotFoundError`` naming ``path``; an ``env`` whose action space ADC cannot act
-        in raises :class:`~sb3_adc.common.spaces.ActionSpaceError` (an ``AssertionError``, as in SB3).
+        in raises a ``ModelFileError`` that is also an :class:`~sb3_adc.common.spaces.ActionSpaceError`.
 
         :param path: path to the file (or a file-like) where to load the agent from
         :param env: the new environment to run the loaded model on (can be None if you only need prediction
@@ -358,7 +358,11 @@ class ADC(TD3WithCriticLearningRate):
         :return: new model instance with loaded parameters
         """
         if env is not None:
-            check_action_space(env.action_space)
+            try:
+                check_action_space(env.action_space)
+            except ActionSpaceError as error:
+                # SB3's load reports the env's mismatched space as a ValueError: be one too, and name the file.
+                raise model_file_error(f"Cannot load the ADC model {path!s} for this env: {error}", type(error)) from error
         with model_file_errors(path, "ADC"):
             return super().load(
                 path,
