@@ -220,3 +220,24 @@ def optional(validator: Validator) -> Validator:
         return None if value is None else validator(value, source, key)
 
     return check
+
+
+def checked_by(check: Callable[[Any], None], canonical: Validator | None = None) -> Validator:
+    """
+    A value accepted by ``check``, the validation function of the class that owns the option (for instance
+    :func:`sb3_adc.adc.intervals.check_n_intervals`), so that the files accept exactly what the class does.
+
+    :param check: Raises ``ValueError`` (or ``TypeError``) naming the accepted values for a value it refuses
+    :param canonical: A validator applied first, for the value's canonical form (``integer()`` reads ``1e2`` as 100)
+    """
+
+    def validate(value: Any, source: str, key: str) -> Any:
+        if canonical is not None:
+            value = canonical(value, source, key)
+        try:
+            check(value)
+        except (ValueError, TypeError) as error:
+            raise HyperparamsError(source, key, str(error)) from None
+        return value
+
+    return validate

@@ -140,3 +140,15 @@ def test_short_repr_does_not_expand_shared_collections():
     assert len(shown) <= MAX_SHOWN_CHARACTERS + 3
     assert short_repr("x" * 10_000).startswith("'xxx")
     assert len(short_repr("x" * 10_000)) <= MAX_SHOWN_CHARACTERS + 3
+
+
+def test_an_option_can_be_validated_by_the_class_that_owns_it():
+    from sb3_adc.adc.intervals import MAX_N_INTERVALS, check_n_intervals
+    from sb3_adc.config import validators
+
+    n_intervals = validators.checked_by(check_n_intervals, validators.integer())
+    assert n_intervals(1e2, "my.yml [Pendulum-v1]", "n_intervals") == 100
+    with pytest.raises(HyperparamsError, match=rf"my\.yml \[Pendulum-v1\]: `n_intervals`: .*<= {MAX_N_INTERVALS}"):
+        n_intervals(10**5, "my.yml [Pendulum-v1]", "n_intervals")
+    with pytest.raises(HyperparamsError, match=r"`n_intervals`: expected an integer"):
+        n_intervals("many", "my.yml [Pendulum-v1]", "n_intervals")
