@@ -6,13 +6,17 @@ import math
 from typing import Any
 
 import numpy as np
-from highway_env import utils
-from highway_env.envs.common.abstract import AbstractEnv
-from highway_env.envs.common.action import action_factory
-from highway_env.envs.common.graphics import EnvViewer
-from highway_env.road.lane import StraightLane
-from highway_env.road.road import Road, RoadNetwork
-from highway_env.vehicle.objects import Obstacle
+
+from sb3_adc.extras import requires_extra
+
+with requires_extra("envs", "the highway obstacle task"):
+    from highway_env import utils
+    from highway_env.envs.common.abstract import AbstractEnv
+    from highway_env.envs.common.action import action_factory
+    from highway_env.envs.common.graphics import EnvViewer
+    from highway_env.road.lane import StraightLane
+    from highway_env.road.road import Road, RoadNetwork
+    from highway_env.vehicle.objects import Obstacle
 
 from sb3_adc_envs.highway_obstacle.observation import RoadEdgeLidarObservation
 

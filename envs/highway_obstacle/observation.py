@@ -7,7 +7,11 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
-from highway_env.envs.common.observation import LidarObservation
+
+from sb3_adc.extras import requires_extra
+
+with requires_extra("envs", "the highway obstacle task"):
+    from highway_env.envs.common.observation import LidarObservation
 
 
 class RoadEdgeLidarObservation(LidarObservation):

@@ -12,9 +12,13 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
-from PIL import Image, ImageDraw
-from scipy import ndimage
-from scipy.spatial import cKDTree
+
+from sb3_adc.extras import requires_extra
+
+with requires_extra("envs", "the lidar obstacle course"):
+    from PIL import Image, ImageDraw
+    from scipy import ndimage
+    from scipy.spatial import cKDTree
 
 from sb3_adc_envs.lidar_course import geometry
 

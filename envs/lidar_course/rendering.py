@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
-from PIL import Image, ImageDraw
+
+from sb3_adc.extras import requires_extra
+
+with requires_extra("envs", "rendering the lidar obstacle course"):
+    from PIL import Image, ImageDraw
 
 from sb3_adc_envs.lidar_course.course import Course
 

@@ -6,7 +6,11 @@ import contextlib
 import math
 
 import numpy as np
-import pybullet
+
+from sb3_adc.extras import requires_extra
+
+with requires_extra("envs", "the lidar obstacle course"):
+    import pybullet
 
 from sb3_adc_envs.lidar_course.course import Course, Obstacle
 

@@ -22,8 +22,11 @@ def test_gym_make_with_the_module_prefix_works_in_a_fresh_process_without_torch_
         "    env.reset(seed=0)\n"
         "    env.step(env.action_space.sample())\n"
         "    env.close()\n"
-        "heavy = sorted(m for m in sys.modules if m.split('.')[0] in ('torch', 'stable_baselines3', 'sb3_adc'))\n"
+        "heavy = sorted(m for m in sys.modules if m.split('.')[0] in ('torch', 'stable_baselines3'))\n"
         "assert not heavy, heavy\n"
+        # Only sb3_adc's light modules: the package (whose algorithms load lazily) and its extras messages.
+        "loaded = sorted(m for m in sys.modules if m.split('.')[0] == 'sb3_adc')\n"
+        "assert set(loaded) <= {'sb3_adc', 'sb3_adc.extras'}, loaded\n"
         "print('ok')\n"
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
@@ -71,3 +74,22 @@ def test_highway_spec_has_the_episode_length_and_one_frame_rate():
     assert other.unwrapped.metadata["render_fps"] == 3
     assert HighwayObstacleEnv.metadata["render_fps"] == 5  # the class's dict is left alone
     other.close()
+
+
+@pytest.mark.parametrize(
+    ("blocked", "env_id"),
+    [("pybullet", "sb3_adc/LidarObstacleCourse-v0"), ("highway_env", "sb3_adc/HighwayObstacle-v0")],
+)
+def test_a_missing_simulator_names_the_extra_to_install(blocked, env_id):
+    code = (
+        "import sys, gymnasium as gym\n"
+        f"sys.modules[{blocked!r}] = None\n"
+        "import sb3_adc\n"
+        "try:\n"
+        f"    gym.make({env_id!r})\n"
+        "except ModuleNotFoundError as error:\n"
+        "    print(error)\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    assert result.returncode == 0, result.stderr
+    assert 'pip install "sb3-adc[envs]"' in result.stdout
