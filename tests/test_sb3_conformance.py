@@ -203,3 +203,15 @@ def test_an_explicit_critic_rate_stays_when_lr_schedule_is_replaced():
     model.learn(60, reset_num_timesteps=False)
     assert learning_rates(model) == pytest.approx((1e-4, 7e-4))
     assert model.critic_learning_rate == 7e-4
+
+
+def test_load_with_the_policy_kwargs_of_construction(tmp_path):
+    # SB3's tests (and users) pass the constructor's policy_kwargs again to `load`; SB3 refuses kwargs that differ
+    # from the saved ones, which for ADC also record the critic design.
+    model = ADC("MlpPolicy", "Pendulum-v1", policy_kwargs=TINY, **FAST)
+    model.save(tmp_path / "adc.zip")
+    loaded = ADC.load(tmp_path / "adc.zip", env=gym.make("Pendulum-v1"), policy_kwargs=TINY)
+    assert loaded.policy.n_intervals == 8
+    assert loaded.critic.critic_design == model.critic.critic_design
+    with pytest.raises(ValueError, match="policy kwargs do not equal the stored policy kwargs"):
+        ADC.load(tmp_path / "adc.zip", policy_kwargs=dict(TINY, n_intervals=9))

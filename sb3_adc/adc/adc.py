@@ -364,11 +364,18 @@ class ADC(TD3WithCriticLearningRate):
                 # SB3's load reports the env's mismatched space as a ValueError: be one too, and name the file.
                 raise model_file_error(f"Cannot load the ADC model {path!s} for this env: {error}", type(error)) from error
         with model_file_errors(path, "ADC"):
+            custom_objects = _design_of_files_without_one(path, custom_objects)
+            given = kwargs.get("policy_kwargs")
+            if isinstance(given, dict) and "critic_design" not in given:
+                # SB3 refuses policy_kwargs that differ from the saved ones, which record the critic design (see
+                # `_setup_model`): the given ones mean the design they meant at construction, the file's.
+                saved = (custom_objects or {}).get("policy_kwargs") or {}
+                kwargs["policy_kwargs"] = {"critic_design": saved.get("critic_design", DEFAULT_CRITIC_DESIGN), **given}
             return super().load(
                 path,
                 env=env,
                 device=device,
-                custom_objects=_design_of_files_without_one(path, custom_objects),
+                custom_objects=custom_objects,
                 print_system_info=print_system_info,
                 force_reset=force_reset,
                 **kwargs,
