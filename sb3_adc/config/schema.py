@@ -13,7 +13,7 @@ import inspect
 
 from stable_baselines3.common.base_class import BaseAlgorithm
 
-from sb3_adc.adc.intervals import AGGREGATIONS, INTERPOLATIONS
+from sb3_adc.adc.intervals import AGGREGATIONS, INTERPOLATIONS, check_n_intervals
 from sb3_adc.adc.policies import CRITIC_DESIGNS
 from sb3_adc.config import validators as v
 
@@ -46,7 +46,7 @@ EPSILON_NOISE_KEYS: dict[str, v.Validator] = {
 #: ADC policy options accepted at the top level of an entry (merged into ``policy_kwargs``).
 #: The accepted values come from the critic (:mod:`sb3_adc.adc.policies`, which also checks how they combine).
 ADC_POLICY_KEYS: dict[str, v.Validator] = {
-    "n_intervals": v.integer(2),
+    "n_intervals": v.checked_by(check_n_intervals, v.integer()),
     "aggregation": v.choice(*AGGREGATIONS),
     "advantage_interpolation": v.choice(*INTERPOLATIONS),
     "critic_design": v.choice(*CRITIC_DESIGNS),
