@@ -191,21 +191,45 @@ def summary(final: pd.DataFrame, evaluations: pd.DataFrame, reps: int) -> pd.Dat
     return pd.DataFrame(rows)
 
 
-def markdown(table: pd.DataFrame) -> str:
-    lines = [
-        "| env | configuration | runs | final IQM [95% CI] | final mean | across-seed std | AUC IQM [95% CI] | "
-        "P(adc > config) [95% CI] |",
-        "|---|---|---:|---|---:|---:|---|---|",
-    ]
+#: Columns of the formatted summary (``summary.md`` and ``summary_table.csv``, which the docs include).
+DISPLAY_COLUMNS = [
+    "env",
+    "configuration",
+    "runs",
+    "final IQM [95% CI]",
+    "final mean",
+    "across-seed std",
+    "AUC IQM [95% CI]",
+    f"P({REFERENCE} > configuration) [95% CI]",
+]
+
+
+def display_table(table: pd.DataFrame) -> pd.DataFrame:
+    """The summary with rounded numbers and CIs in brackets, one string per cell."""
+    rows = []
     for row in table.itertuples():
         improvement = "—"
         if not pd.isna(getattr(row, "p_improvement_of_adc", np.nan)):
             improvement = f"{row.p_improvement_of_adc:.2f} [{row.p_improvement_ci_low:.2f}, {row.p_improvement_ci_high:.2f}]"
-        lines.append(
-            f"| {row.env} | {row.config} | {row.n_runs} | {row.final_iqm:.1f} [{row.final_iqm_ci_low:.1f}, "
-            f"{row.final_iqm_ci_high:.1f}] | {row.final_mean:.1f} | {row.final_std:.1f} | {row.auc_iqm:.1f} "
-            f"[{row.auc_iqm_ci_low:.1f}, {row.auc_iqm_ci_high:.1f}] | {improvement} |"
+        rows.append(
+            [
+                row.env,
+                row.config,
+                str(row.n_runs),
+                f"{row.final_iqm:.1f} [{row.final_iqm_ci_low:.1f}, {row.final_iqm_ci_high:.1f}]",
+                f"{row.final_mean:.1f}",
+                f"{row.final_std:.1f}",
+                f"{row.auc_iqm:.1f} [{row.auc_iqm_ci_low:.1f}, {row.auc_iqm_ci_high:.1f}]",
+                improvement,
+            ]
         )
+    return pd.DataFrame(rows, columns=DISPLAY_COLUMNS)
+
+
+def markdown(table: pd.DataFrame) -> str:
+    display = display_table(table)
+    lines = ["| " + " | ".join(DISPLAY_COLUMNS) + " |", "|---|---|---:|---|---:|---:|---|---|"]
+    lines += ["| " + " | ".join(row) + " |" for row in display.itertuples(index=False)]
     return "\n".join(lines) + "\n"
 
 
@@ -239,6 +263,7 @@ def main() -> None:
     table = summary(final, evaluations, args.reps)
     table.to_csv(output / "summary.csv", index=False)
     (output / "summary.md").write_text(markdown(table))
+    display_table(table).to_csv(output / "summary_table.csv", index=False)
     plots = plot_results(evaluations, str(output), final=final, episodes=pd.read_csv(output / EPISODES_CSV), reps=args.reps)
     if not args.quick:
         DOCS_STATIC.mkdir(parents=True, exist_ok=True)
