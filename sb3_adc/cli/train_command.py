@@ -12,6 +12,7 @@ from sb3_adc.cli.common import (
     key_values,
     resolve_seed,
 )
+from sb3_adc.cli.tune_arguments import TUNING_HELP, add_tuning_arguments, run_tuning
 from sb3_adc.config import check_env_id
 from sb3_adc.experiment import TrainSettings, find_run, resume, train
 
@@ -29,6 +30,7 @@ examples:
   sb3-adc train --algo ddpg --env Pendulum-v1 --seed 3 -n 5000 -params learning_rate:0.0005
   sb3-adc train --algo adc --env Pendulum-v1 --resume            # the latest run of adc on Pendulum-v1
   sb3-adc train --resume logs/adc/Pendulum-v1_2 -n 40000         # a given run, with a larger budget
+
 """
 
 
@@ -41,7 +43,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "train",
         help="train an algorithm on an environment (RL-Zoo log layout, checkpoints, resume)",
-        description=DESCRIPTION,
+        description=DESCRIPTION + TUNING_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_algo_argument(parser, required=False)
@@ -87,6 +89,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="continue a run from its last checkpoint: RUN_DIR, or (without value) the latest run of --algo on --env",
     )
     add_runtime_arguments(parser)
+    add_tuning_arguments(parser)
     parser.set_defaults(handler=run)
 
 
@@ -98,6 +101,8 @@ def run(args: argparse.Namespace) -> int:
     :return: The exit status
     """
     apply_runtime_arguments(args)
+    if args.optimize:
+        return run_tuning(args)
     progress_bar = not args.no_progress_bar
     if args.resume is not None:
         if args.resume == "latest":

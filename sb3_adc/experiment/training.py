@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -60,11 +61,13 @@ class RunInterrupted(KeyboardInterrupt):
         self.timesteps = timesteps
 
 
-def train(settings: TrainSettings) -> TrainResult:
+def train(settings: TrainSettings, callbacks: Sequence[BaseCallback] = ()) -> TrainResult:
     """
     Train ``settings.algo`` on ``settings.env_id`` in a new run folder.
 
     :param settings: What to train and how to log it
+    :param callbacks: Callbacks called after the run's own (evaluation, checkpoints), e.g. the pruning callback
+        of a tuning trial; not saved with the run
     :raises HyperparamsError: for invalid hyperparameters (before anything is written)
     :raises RunInterrupted: on Ctrl-C, after saving a checkpoint
     """
@@ -84,7 +87,7 @@ def train(settings: TrainSettings) -> TrainResult:
         f"Training {settings.algo} on {settings.env_id} (seed {settings.seed}, {config.n_timesteps} timesteps, "
         f"hyperparameters from {config.source}) in {run_dir}"
     )
-    return _run(layout, settings, config, checkpoint=None)
+    return _run(layout, settings, config, checkpoint=None, extra_callbacks=callbacks)
 
 
 def resume(
@@ -165,7 +168,13 @@ def _latest_checkpoint(layout: RunLayout) -> Checkpoint | None:
     return None
 
 
-def _run(layout: RunLayout, settings: TrainSettings, config: ExperimentConfig, checkpoint: Checkpoint | None) -> TrainResult:
+def _run(
+    layout: RunLayout,
+    settings: TrainSettings,
+    config: ExperimentConfig,
+    checkpoint: Checkpoint | None,
+    extra_callbacks: Sequence[BaseCallback] = (),
+) -> TrainResult:
     start = checkpoint.timesteps if checkpoint is not None else 0
     _restore_records(layout, config, start)
     train_env = make_vec_env(
@@ -193,6 +202,7 @@ def _run(layout: RunLayout, settings: TrainSettings, config: ExperimentConfig, c
     if settings.checkpoint_interval(config.n_timesteps) > 0:
         callbacks.append(saver)
     callbacks.extend(config.make_callbacks())
+    callbacks.extend(extra_callbacks)
 
     if checkpoint is not None:
         print(f"Resuming {layout.run_dir} from timestep {start} of {config.n_timesteps}")

@@ -1,0 +1,97 @@
+"""``sb3-adc train -optimize``: the RL Zoo's tuning options, run by :func:`sb3_adc.experiment.tuning.tune`."""
+
+from __future__ import annotations
+
+import argparse
+
+from sb3_adc.cli.common import CommandError, key_values
+
+TUNING_HELP = """\
+tuning (-optimize): Optuna studies whose first trial is the shipped entry; a trial's value is its mean final
+return over --tuning-seeds. The study resumes when the command is run again; the best entry is written to
+LOG_FOLDER/tuning/STUDY/best_hyperparams.yml (use it with -conf).
+  sb3-adc train --algo adc --env sb3_adc/NoisyPendulum-v1 -optimize --n-trials 20 --n-jobs 2 --tuning-seeds 0 1
+"""
+
+
+def add_tuning_arguments(parser: argparse.ArgumentParser) -> None:
+    """
+    The tuning options of ``sb3-adc train`` (the RL Zoo's names).
+
+    :param parser: The ``train`` parser
+    """
+    from sb3_adc.experiment.tuning import PRUNER_NAMES, SAMPLER_NAMES
+
+    group = parser.add_argument_group("tuning (-optimize)")
+    group.add_argument(
+        "-optimize", "--optimize-hyperparameters", dest="optimize", action="store_true", help="tune hyperparameters"
+    )
+    group.add_argument(
+        "--n-trials", type=int, default=10, help="finished trials of the study, shipped entry included (default: 10)"
+    )
+    group.add_argument("--n-jobs", type=int, default=1, help="worker processes (default: 1)")
+    group.add_argument("--sampler", default="tpe", help=f"sampler: {', '.join(SAMPLER_NAMES)} (default: tpe)")
+    group.add_argument("--pruner", default="median", help=f"pruner: {', '.join(PRUNER_NAMES)} (default: median)")
+    group.add_argument(
+        "--n-startup-trials", type=int, default=5, help="random trials before TPE and before pruning (default: 5)"
+    )
+    group.add_argument("--n-evaluations", type=int, default=5, help="evaluations per run reported to the pruner (default: 5)")
+    group.add_argument(
+        "--tuning-seeds",
+        type=int,
+        nargs="+",
+        default=None,
+        metavar="SEED",
+        help="seeds of every trial (default: --seed, or 0)",
+    )
+    group.add_argument(
+        "--storage",
+        default=None,
+        help="Optuna storage shared by workers and machines: a journal file (*.log) or a database URL "
+        "(default: LOG_FOLDER/tuning/STUDY/study.log)",
+    )
+    group.add_argument("--study-name", default=None, help="study name (default: ALGO-ENV)")
+    group.add_argument("--sampler-seed", type=int, default=0, help="seed of the sampler (default: 0)")
+
+
+def run_tuning(args: argparse.Namespace) -> int:
+    """
+    Run ``sb3-adc train -optimize``.
+
+    :param args: The parsed command line
+    :return: The exit status
+    """
+    from sb3_adc.config import check_env_id
+    from sb3_adc.experiment.tuning import TuneSettings, tune
+
+    if args.resume is not None:
+        raise CommandError("-optimize and --resume do not combine: run the same -optimize command again to continue a study")
+    if args.algo is None or args.env is None:
+        raise CommandError("-optimize needs --algo and --env")
+    check_env_id(args.env)
+    seeds = args.tuning_seeds if args.tuning_seeds is not None else [max(args.seed, 0)]
+    settings = TuneSettings(
+        algo=args.algo,
+        env_id=args.env,
+        n_trials=args.n_trials,
+        n_timesteps=args.n_timesteps,
+        seeds=tuple(seeds),
+        sampler=args.sampler,
+        pruner=args.pruner,
+        n_startup_trials=args.n_startup_trials,
+        n_evaluations=args.n_evaluations,
+        eval_episodes=args.eval_episodes,
+        final_eval_episodes=args.final_eval_episodes,
+        n_jobs=args.n_jobs,
+        storage=args.storage,
+        study_name=args.study_name,
+        sampler_seed=args.sampler_seed,
+        conf_file=args.conf_file,
+        overrides=key_values(args.hyperparams, "-params"),
+        env_kwargs=key_values(args.env_kwargs, "--env-kwargs"),
+        log_folder=args.log_folder,
+        device=args.device,
+        verbose=args.verbose,
+    )
+    tune(settings)
+    return 0

@@ -1,0 +1,215 @@
+"""
+Optuna search spaces of the algorithms that ``sb3-adc train -optimize`` tunes.
+
+Each sampler draws hyperparameters from an Optuna trial and returns them as overrides of the algorithm's entry
+(the same ``key: value`` pairs as ``-params``), so a trial runs through the same engine, validation and log
+layout as any other run. The spaces follow the RL Zoo's ``rl_zoo3/hyperparams_opt.py`` for the keys the
+algorithms share (written here rather than imported: the Zoo's samplers return constructor keywords with
+objects such as noise instances, which cannot go through our validated YAML entries, and it has none for
+ADC, the split-rate DDPG, the vanilla actor-critic or the dueling DQN).
+
+ADC and DDPG are searched over the same shared keys, including the critic-to-actor learning-rate ratio and the
+epsilon-gated exploration schedule; ADC also over its own knobs: the critic design, the number of intervals
+and, for the Legendre critic, the degree of the basis. TD3 and SAC get the shared keys their constructors take.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Collection, Mapping, Sequence
+from typing import Any
+
+import optuna
+
+#: Network sizes tried for the actor and critic (the RL Zoo's names and sizes).
+NET_ARCHS: dict[str, list[int]] = {"small": [64, 64], "medium": [256, 256], "big": [400, 300]}
+
+Sampler = Callable[["Space"], dict[str, Any]]
+
+
+class Space:
+    """
+    A trial's view of the search: suggestions for the keys that the command line does not fix.
+
+    :param trial: The Optuna trial
+    :param entry: The entry the trial starts from (the shipped one, with the fixed overrides)
+    :param fixed: Keys fixed by ``-params``: never searched, so that a trial's parameters are what it ran
+    """
+
+    def __init__(self, trial: optuna.Trial, entry: Mapping[str, Any], fixed: Collection[str] = ()):
+        self.trial = trial
+        self.entry = entry
+        self.fixed = frozenset(fixed)
+
+    def categorical(self, params: dict[str, Any], key: str, choices: Sequence[Any], name: str | None = None) -> None:
+        """
+        Set ``params[key]`` from a categorical suggestion named ``name`` (default: ``key``), unless ``key`` is fixed.
+
+        :param params: The trial's values so far
+        :param key: The entry's key
+        :param choices: The choices
+        :param name: The Optuna parameter's name
+        """
+        if key not in self.fixed:
+            params[key] = self.trial.suggest_categorical(name or key, list(choices))
+
+    def log_float(self, params: dict[str, Any], key: str, low: float, high: float) -> None:
+        """
+        Set ``params[key]`` from a log-uniform suggestion, unless ``key`` is fixed.
+
+        :param params: The trial's values so far
+        :param key: The entry's key
+        :param low: The lower bound
+        :param high: The upper bound
+        """
+        if key not in self.fixed:
+            params[key] = self.trial.suggest_float(key, low, high, log=True)
+
+    def uniform(self, params: dict[str, Any], key: str, low: float, high: float) -> None:
+        """
+        Set ``params[key]`` from a uniform suggestion, unless ``key`` is fixed.
+
+        :param params: The trial's values so far
+        :param key: The entry's key
+        :param low: The lower bound
+        :param high: The upper bound
+        """
+        if key not in self.fixed:
+            params[key] = self.trial.suggest_float(key, low, high)
+
+
+def _shared_off_policy(space: Space) -> dict[str, Any]:
+    """Keys of every off-policy actor-critic here: discount, learning rate, batch, soft update, start, network."""
+    params: dict[str, Any] = {}
+    space.categorical(params, "gamma", [0.9, 0.95, 0.98, 0.99])
+    space.log_float(params, "learning_rate", 1e-4, 3e-3)
+    space.categorical(params, "batch_size", [64, 128, 256])
+    space.categorical(params, "tau", [0.005, 0.01, 0.02])
+    space.categorical(params, "learning_starts", [1000, 5000, 10000])
+    if _only_net_arch(space.entry.get("policy_kwargs")):
+        space.categorical(params, "policy_kwargs", list(NET_ARCHS), name="net_arch")
+        if "policy_kwargs" in params:
+            params["policy_kwargs"] = {"net_arch": NET_ARCHS[params["policy_kwargs"]]}
+    return params
+
+
+def _only_net_arch(policy_kwargs: Any) -> bool:
+    """Whether an entry's ``policy_kwargs`` set nothing but ``net_arch`` (replacing them then loses nothing)."""
+    if policy_kwargs is None:
+        return True
+    if isinstance(policy_kwargs, Mapping):
+        return set(policy_kwargs) <= {"net_arch"}
+    text = str(policy_kwargs).replace(" ", "")
+    return text.startswith("dict(net_arch=") and text.count("=") == 1
+
+
+def _exploration(space: Space) -> dict[str, Any]:
+    """Gaussian exploration, always on or epsilon-gated (the ADC paper's) with its decay schedule."""
+    params: dict[str, Any] = {}
+    space.categorical(params, "noise_type", ["normal", "epsilon-normal"])
+    space.categorical(params, "noise_std", [0.05, 0.1, 0.2, 0.3, 0.5])
+    if params.get("noise_type", space.entry.get("noise_type")) == "epsilon-normal":
+        space.categorical(params, "epsilon_decay_steps", [5000, 10000, 20000, 40000])
+        space.categorical(params, "epsilon_final", [0.0, 0.05, 0.1, 0.2])
+    return params
+
+
+def _critic_rate(space: Space, params: Mapping[str, Any]) -> dict[str, Any]:
+    """The critic's learning rate as a multiple of the actor's (the paper uses twice the actor's)."""
+    if "critic_learning_rate" in space.fixed:
+        return {}
+    ratio = space.trial.suggest_categorical("critic_rate_ratio", [1.0, 2.0, 5.0])
+    learning_rate = params.get("learning_rate", space.entry.get("learning_rate", 1e-3))
+    return {"critic_learning_rate": float(learning_rate) * ratio}
+
+
+def sample_ddpg(space: Space) -> dict[str, Any]:
+    """
+    DDPG (with a critic learning rate of its own): the shared keys, the critic-rate ratio and the exploration.
+
+    :param space: The trial's search space
+    """
+    params = _shared_off_policy(space)
+    params.update(_critic_rate(space, params))
+    params.update(_exploration(space))
+    return params
+
+
+def sample_adc(space: Space) -> dict[str, Any]:
+    """
+    ADC: DDPG's space, plus the critic design, the number of intervals and the Legendre basis degree.
+
+    :param space: The trial's search space
+    """
+    params = sample_ddpg(space)
+    space.categorical(params, "critic_design", ["legendre", "state_value", "paper"])
+    space.categorical(params, "n_intervals", [20, 50, 100, 200])
+    if params.get("critic_design", space.entry.get("critic_design", "legendre")) == "legendre":
+        space.categorical(params, "basis_degree", [2, 4, 6])
+    return params
+
+
+def sample_td3(space: Space) -> dict[str, Any]:
+    """
+    TD3: the shared keys and the exploration noise (its twin critics, delay and smoothing stay SB3's).
+
+    :param space: The trial's search space
+    """
+    params = _shared_off_policy(space)
+    params.update(_exploration(space))
+    return params
+
+
+def sample_sac(space: Space) -> dict[str, Any]:
+    """
+    SAC: the shared keys and the entropy coefficient (learned, or fixed).
+
+    :param space: The trial's search space
+    """
+    params = _shared_off_policy(space)
+    space.categorical(params, "ent_coef", ["auto", 0.1, 0.01])
+    return params
+
+
+def sample_vanilla_ac(space: Space) -> dict[str, Any]:
+    """
+    The vanilla actor-critic (no replay, no target networks): discount, rates and exploration.
+
+    :param space: The trial's search space
+    """
+    params: dict[str, Any] = {}
+    space.categorical(params, "gamma", [0.9, 0.95, 0.98, 0.99])
+    space.log_float(params, "learning_rate", 1e-5, 3e-3)
+    params.update(_critic_rate(space, params))
+    params.update(_exploration(space))
+    return params
+
+
+def sample_dqn(space: Space) -> dict[str, Any]:
+    """
+    The dueling DQN over discretised actions: the RL Zoo's DQN space without the network (its policy is ours).
+
+    :param space: The trial's search space
+    """
+    params: dict[str, Any] = {}
+    space.categorical(params, "gamma", [0.9, 0.95, 0.98, 0.99])
+    space.log_float(params, "learning_rate", 1e-5, 3e-3)
+    space.categorical(params, "batch_size", [32, 64, 128, 256])
+    space.categorical(params, "buffer_size", [5000, 50000, 200000])
+    space.uniform(params, "exploration_fraction", 0.05, 0.5)
+    space.uniform(params, "exploration_final_eps", 0.0, 0.2)
+    space.categorical(params, "target_update_interval", [1, 100, 1000])
+    space.categorical(params, "learning_starts", [0, 1000, 5000])
+    return params
+
+
+#: ``--algo`` name -> its search space.
+SAMPLERS: dict[str, Sampler] = {
+    "adc": sample_adc,
+    "ddpg": sample_ddpg,
+    "td3": sample_td3,
+    "sac": sample_sac,
+    "vanilla_ac": sample_vanilla_ac,
+    "dqn": sample_dqn,
+}
+
+__all__ = ["NET_ARCHS", "SAMPLERS", "Sampler", "Space"]

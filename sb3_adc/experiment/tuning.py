@@ -1,0 +1,450 @@
+"""
+Hyperparameter tuning with Optuna (``sb3-adc train -optimize``), on the same engine as every other run.
+
+A trial draws hyperparameters from the algorithm's search space (:mod:`~sb3_adc.experiment.samplers`), writes
+them as a hyperparameter file next to its runs, and trains them with :func:`~sb3_adc.experiment.training.train`
+on each tuning seed; its value is the mean final evaluation return over the seeds. Periodic evaluations are
+reported to the pruner, as in the RL Zoo's ``TrialEvalCallback``.
+
+Differences from the RL Zoo, each for a reason:
+
+- The first trial of a study is the algorithm's shipped entry, unchanged: a tuned entry is then at least as
+  good as the shipped one on the tuning seeds, and the shipped settings of a baseline (at least as good as the
+  RL Zoo's) take part in the comparison.
+- A trial may train several seeds, so that one lucky seed does not pick the winner.
+- ``--n-jobs`` runs worker processes (not threads, which share one interpreter lock) on one study, and the
+  study lives in a journal file by default, so a study interrupted at any point resumes where it stopped and
+  several machines can share a study through ``--storage``. The budget is exactly ``n_trials`` finished trials
+  whatever the number of workers: equal budgets are what make a comparison of tuned algorithms fair.
+
+Files, under ``{log_folder}/tuning/{study_name}/``: ``study.log`` (the Optuna journal), ``trial_N/hyperparams.yml``
+and ``trial_N/seed_S/`` (an ordinary run folder), ``trials.csv`` and ``best_hyperparams.yml`` (usable with
+``-conf``).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import multiprocessing
+import os
+import socket
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import optuna
+import torch as th
+import yaml
+from optuna.storages.journal import JournalFileBackend
+from optuna.trial import FrozenTrial, TrialState
+from stable_baselines3.common.callbacks import EvalCallback
+
+from sb3_adc.config import HyperparamsError, load_hyperparams
+from sb3_adc.config.loader import find_hyperparams_file, packaged_hyperparams_file, read_hyperparams_file, select_entry
+from sb3_adc.experiment.envs import make_vec_env, wrap_vec_env
+from sb3_adc.experiment.layout import env_name
+from sb3_adc.experiment.samplers import SAMPLERS, Space
+from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings
+from sb3_adc.experiment.training import train
+
+#: ``--sampler`` choices.
+SAMPLER_NAMES = ("tpe", "random")
+#: ``--pruner`` choices.
+PRUNER_NAMES = ("median", "halving", "none")
+#: Keys of the epsilon-gated noise, dropped from an entry whose trial draws another noise type.
+_EPSILON_KEYS = ("epsilon_decay_steps", "epsilon_initial", "epsilon_final")
+_SHIPPED = "shipped"
+_WORKER = "worker"
+
+
+@dataclass
+class TuneSettings:
+    """
+    What to tune and how.
+
+    :param algo: The algorithm's name (one of :data:`~sb3_adc.experiment.samplers.SAMPLERS`)
+    :param env_id: The environment id
+    :param n_trials: Finished trials (complete or pruned) the study holds at the end, the shipped entry included
+    :param n_timesteps: Training budget of each run (``None``: the entry's)
+    :param seeds: Seeds each trial trains on (tune on seeds that the final comparison does not use)
+    :param sampler: ``tpe`` (Optuna's default) or ``random``
+    :param pruner: ``median``, ``halving`` (successive halving) or ``none``
+    :param n_startup_trials: Trials sampled at random before TPE takes over and before the median pruner prunes
+    :param n_evaluations: Evaluations per run reported to the pruner
+    :param eval_episodes: Deterministic episodes of each of those evaluations
+    :param final_eval_episodes: Deterministic episodes of each run's final evaluation (the trial's value)
+    :param n_jobs: Worker processes
+    :param storage: Optuna storage: a database URL (``sqlite:///study.db``, needs SQLAlchemy) or a journal file
+        (``*.log``); ``None``: ``study.log`` in the study folder
+    :param study_name: The study's name (``None``: ``{algo}-{env}``)
+    :param sampler_seed: Seed of the sampler (worker ``k`` uses ``sampler_seed + k``)
+    :param conf_file: Hyperparameter file whose entry is the starting point (``None``: the shipped ``{algo}.yml``)
+    :param overrides: Values fixed in every trial (``-params``), outside the search
+    :param env_kwargs: Keyword arguments of ``gym.make``
+    :param log_folder: Root of the log layout
+    :param device: PyTorch device
+    :param verbose: SB3 verbosity of the runs
+    """
+
+    algo: str
+    env_id: str
+    n_trials: int = 10
+    n_timesteps: int | None = None
+    seeds: tuple[int, ...] = (0,)
+    sampler: str = "tpe"
+    pruner: str = "median"
+    n_startup_trials: int = 5
+    n_evaluations: int = 5
+    eval_episodes: int = 5
+    final_eval_episodes: int = 10
+    n_jobs: int = 1
+    storage: str | None = None
+    study_name: str | None = None
+    sampler_seed: int = 0
+    conf_file: str | None = None
+    overrides: dict[str, Any] = field(default_factory=dict)
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    log_folder: str = "logs"
+    device: str = "auto"
+    verbose: int = 0
+
+    def __post_init__(self) -> None:
+        if self.algo not in SAMPLERS:
+            raise HyperparamsError(
+                "command line", "--algo", f"no search space for {self.algo!r}; tunable: {', '.join(SAMPLERS)}"
+            )
+        if self.sampler not in SAMPLER_NAMES:
+            raise HyperparamsError("command line", "--sampler", f"{self.sampler!r}; accepted: {', '.join(SAMPLER_NAMES)}")
+        if self.pruner not in PRUNER_NAMES:
+            raise HyperparamsError("command line", "--pruner", f"{self.pruner!r}; accepted: {', '.join(PRUNER_NAMES)}")
+        for option, value, minimum in (
+            ("--n-trials", self.n_trials, 1),
+            ("--n-jobs", self.n_jobs, 1),
+            ("--n-startup-trials", self.n_startup_trials, 0),
+            ("--n-evaluations", self.n_evaluations, 1),
+            ("--eval-episodes", self.eval_episodes, 1),
+            ("--final-eval-episodes", self.final_eval_episodes, 1),
+        ):
+            if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+                raise HyperparamsError("command line", option, f"must be an integer >= {minimum}, got {value!r}")
+        if self.n_timesteps is not None and self.n_timesteps < 1:
+            raise HyperparamsError("command line", "--n-timesteps", f"must be >= 1, got {self.n_timesteps}")
+        if not self.seeds or any(seed < 0 for seed in self.seeds) or len(set(self.seeds)) != len(self.seeds):
+            raise HyperparamsError("command line", "--tuning-seeds", f"distinct seeds >= 0 are needed, got {list(self.seeds)}")
+        self.seeds = tuple(int(seed) for seed in self.seeds)
+
+    @property
+    def name(self) -> str:
+        """The study's name."""
+        return self.study_name or f"{self.algo}-{env_name(self.env_id)}"
+
+    @property
+    def study_dir(self) -> str:
+        """The study's folder."""
+        return os.path.join(self.log_folder, "tuning", self.name)
+
+    def storage_url(self) -> str:
+        """The storage, as given or the default journal file."""
+        return self.storage or os.path.join(self.study_dir, "study.log")
+
+
+@dataclass
+class TuneResult:
+    """
+    The outcome of a study.
+
+    :param study_dir: The study's folder
+    :param best_value: Mean final return of the best trial
+    :param best_params: Its sampled hyperparameters (empty for the shipped entry)
+    :param best_hyperparams_file: The hyperparameter file of the best trial (``-conf``)
+    :param n_finished: Finished trials (complete or pruned)
+    """
+
+    study_dir: str
+    best_value: float
+    best_params: dict[str, Any]
+    best_hyperparams_file: str
+    n_finished: int
+
+
+def tune(settings: TuneSettings) -> TuneResult:
+    """
+    Run (or continue) a study until it holds ``settings.n_trials`` finished trials.
+
+    :param settings: What to tune
+    :raises HyperparamsError: for invalid settings or hyperparameters, before any trial runs
+    """
+    base = _base_entry(settings)
+    # Resolve the starting entry once: invalid hyperparameters stop here, before a folder is made.
+    load_hyperparams(settings.algo, settings.env_id, settings.conf_file, settings.overrides, settings.n_timesteps)
+    os.makedirs(settings.study_dir, exist_ok=True)
+    study = _open_study(settings, worker=0)
+    _fail_dead_trials(study)
+    if not any(trial.user_attrs.get(_SHIPPED) and trial.state != TrialState.FAIL for trial in study.trials):
+        study.enqueue_trial({}, user_attrs={_SHIPPED: True})
+    remaining = settings.n_trials - len(_finished(study)) - _count(study, TrialState.RUNNING)
+    start = time.perf_counter()
+    print(
+        f"Tuning {settings.algo} on {settings.env_id}: study {settings.name} in {settings.study_dir}, "
+        f"{len(_finished(study))} of {settings.n_trials} trials finished, seeds {list(settings.seeds)}, "
+        f"{settings.n_jobs} worker(s)"
+    )
+    if remaining > 0:
+        shares = [remaining // settings.n_jobs + (k < remaining % settings.n_jobs) for k in range(settings.n_jobs)]
+        shares = [share for share in shares if share > 0]
+        if len(shares) == 1:
+            _work(settings, base, 0, shares[0])
+        else:
+            context = multiprocessing.get_context("spawn")
+            workers = [
+                context.Process(target=_work, args=(settings, base, k, share), name=f"tuning-worker-{k}")
+                for k, share in enumerate(shares)
+            ]
+            for worker in workers:
+                worker.start()
+            for worker in workers:
+                worker.join()
+            failed = [worker.name for worker in workers if worker.exitcode != 0]
+            if failed:
+                raise RuntimeError(f"{', '.join(failed)} stopped with an error; run the same command again to continue")
+    study = _open_study(settings, worker=0)
+    result = _report(settings, study)
+    print(f"Tuning took {time.perf_counter() - start:.0f} s")
+    return result
+
+
+def _work(settings: TuneSettings, base: dict[str, Any], worker: int, n_trials: int) -> None:
+    """One worker: run ``n_trials`` trials of the study."""
+    th.set_num_threads(1)
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    study = _open_study(settings, worker)
+    study.optimize(lambda trial: _objective(trial, settings, base), n_trials=n_trials, catch=())
+
+
+def _objective(trial: optuna.Trial, settings: TuneSettings, base: dict[str, Any]) -> float:
+    trial.set_user_attr(_WORKER, f"{socket.gethostname()}:{os.getpid()}")
+    shipped = bool(trial.user_attrs.get(_SHIPPED))
+    params = {} if shipped else SAMPLERS[settings.algo](Space(trial, {**base, **settings.overrides}, settings.overrides))
+    entry = trial_entry(base, params, settings.overrides)
+    trial_dir = os.path.join(settings.study_dir, f"trial_{trial.number}")
+    os.makedirs(trial_dir, exist_ok=True)
+    hyperparams_file = os.path.join(trial_dir, "hyperparams.yml")
+    _write_entry(hyperparams_file, settings.env_id, entry, f"trial {trial.number} of study {settings.name}")
+    trial.set_user_attr("hyperparams", hyperparams_file)
+    returns = []
+    for index, seed in enumerate(settings.seeds):
+        callback = TrialEvalCallback(trial, settings, hyperparams_file, seed, step_offset=index * settings.n_evaluations)
+        run_settings = TrainSettings(
+            algo=settings.algo,
+            env_id=settings.env_id,
+            seed=seed,
+            conf_file=hyperparams_file,
+            env_kwargs=dict(settings.env_kwargs),
+            n_timesteps=settings.n_timesteps,
+            log_folder=settings.log_folder,
+            run_dir=os.path.join(trial_dir, f"seed_{seed}"),
+            eval_freq=-1,
+            save_freq=-1,
+            final_eval_episodes=settings.final_eval_episodes,
+            device=settings.device,
+            verbose=settings.verbose,
+            progress_bar=False,
+        )
+        result = train(run_settings, callbacks=[callback])
+        if callback.is_pruned:
+            raise optuna.TrialPruned(f"pruned at evaluation {callback.n_reports} of seed {seed}")
+        returns.append(result.final_evaluation.mean_return)
+        trial.set_user_attr(f"return_seed_{seed}", returns[-1])
+    value = float(np.mean(returns))
+    if not math.isfinite(value):
+        raise optuna.TrialPruned(f"non-finite return {value}")
+    return value
+
+
+def trial_entry(base: Mapping[str, Any], params: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """
+    The hyperparameter entry of a trial: the starting entry, the sampled values, then the fixed overrides.
+
+    :param base: The starting entry
+    :param params: The sampled values
+    :param overrides: Values fixed in every trial (``-params``)
+    """
+    entry = {**base, **params, **overrides}
+    if entry.get("noise_type") != "epsilon-normal":
+        for key in _EPSILON_KEYS:
+            entry.pop(key, None)
+    return entry
+
+
+class TrialEvalCallback(EvalCallback):
+    """
+    Evaluate a run ``n_evaluations`` times and report each mean return to the trial, stopping the run when the
+    pruner says so (the RL Zoo's ``TrialEvalCallback``, with the evaluation environment built from the trial's
+    entry and the report steps of several seeds laid end to end).
+
+    :param trial: The Optuna trial
+    :param settings: The study's settings
+    :param hyperparams_file: The trial's hyperparameter file
+    :param seed: The run's seed
+    :param step_offset: Report step of this run's first evaluation
+    """
+
+    def __init__(self, trial: optuna.Trial, settings: TuneSettings, hyperparams_file: str, seed: int, step_offset: int):
+        config = load_hyperparams(settings.algo, settings.env_id, hyperparams_file, n_timesteps=settings.n_timesteps)
+        if settings.env_kwargs:
+            config.env_kwargs.update(settings.env_kwargs)
+        eval_env = wrap_vec_env(config, make_vec_env(config, 1, seed + EVAL_SEED_OFFSET), training=False)
+        super().__init__(
+            eval_env,
+            n_eval_episodes=settings.eval_episodes,
+            eval_freq=max(config.n_timesteps // settings.n_evaluations // config.n_envs, 1),
+            deterministic=True,
+            verbose=0,
+        )
+        self.trial = trial
+        self.step_offset = step_offset
+        self.n_reports = 0
+        self.is_pruned = False
+
+    def _on_step(self) -> bool:
+        if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
+            super()._on_step()
+            self.trial.report(self.last_mean_reward, self.step_offset + self.n_reports)
+            self.n_reports += 1
+            if self.trial.should_prune():
+                self.is_pruned = True
+                return False
+        return True
+
+    def _on_training_end(self) -> None:
+        self.eval_env.close()
+
+
+def _base_entry(settings: TuneSettings) -> dict[str, Any]:
+    path = find_hyperparams_file(settings.conf_file) if settings.conf_file else packaged_hyperparams_file(settings.algo)
+    entry, _ = select_entry(read_hyperparams_file(path), settings.env_id, path)
+    return entry
+
+
+def _open_study(settings: TuneSettings, worker: int) -> optuna.Study:
+    url = settings.storage_url()
+    storage: str | optuna.storages.BaseStorage
+    if "://" in url:
+        storage = url  # a database: Optuna opens it (SQLAlchemy needed)
+    else:
+        directory = os.path.dirname(os.path.abspath(url))
+        os.makedirs(directory, exist_ok=True)
+        storage = optuna.storages.JournalStorage(JournalFileBackend(url))
+    sampler: optuna.samplers.BaseSampler
+    seed = settings.sampler_seed + worker
+    if settings.sampler == "tpe":
+        sampler = optuna.samplers.TPESampler(n_startup_trials=settings.n_startup_trials, seed=seed)
+    else:
+        sampler = optuna.samplers.RandomSampler(seed=seed)
+    pruner: optuna.pruners.BasePruner
+    if settings.pruner == "median":
+        pruner = optuna.pruners.MedianPruner(
+            n_startup_trials=settings.n_startup_trials, n_warmup_steps=settings.n_evaluations // 3
+        )
+    elif settings.pruner == "halving":
+        pruner = optuna.pruners.SuccessiveHalvingPruner(min_resource=1, reduction_factor=4)
+    else:
+        pruner = optuna.pruners.NopPruner()
+    try:
+        return optuna.create_study(
+            storage=storage,
+            study_name=settings.name,
+            sampler=sampler,
+            pruner=pruner,
+            direction="maximize",
+            load_if_exists=True,
+        )
+    except ImportError as error:
+        raise HyperparamsError("command line", "--storage", f"{url}: {error} (a journal file `*.log` needs nothing)") from None
+
+
+def _fail_dead_trials(study: optuna.Study) -> None:
+    """Mark as failed the running trials of this machine whose worker process is gone (an interrupted study)."""
+    host = socket.gethostname()
+    for trial in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+        worker = str(trial.user_attrs.get(_WORKER, ""))
+        name, _, pid = worker.rpartition(":")
+        if name == host and pid.isdigit() and not _alive(int(pid)):
+            study._storage.set_trial_state_values(trial._trial_id, TrialState.FAIL)
+            print(f"Trial {trial.number} was interrupted (its worker {worker} is gone): marked failed, it runs again")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _finished(study: optuna.Study) -> list[FrozenTrial]:
+    return study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.PRUNED))
+
+
+def _count(study: optuna.Study, state: TrialState) -> int:
+    return len(study.get_trials(deepcopy=False, states=(state,)))
+
+
+def _write_entry(path: str, env_id: str, entry: Mapping[str, Any], comment: str) -> None:
+    text = f"# {comment}\n" + yaml.safe_dump({env_id: dict(entry)}, sort_keys=True)
+    partial = path + ".partial"
+    with open(partial, "w", encoding="utf-8") as stream:
+        stream.write(text)
+    os.replace(partial, path)
+
+
+def _report(settings: TuneSettings, study: optuna.Study) -> TuneResult:
+    trials = study.get_trials(deepcopy=False)
+    rows = []
+    for trial in trials:
+        rows.append(
+            {
+                "number": trial.number,
+                "state": trial.state.name,
+                "value": "" if trial.value is None else round(trial.value, 3),
+                "shipped": bool(trial.user_attrs.get(_SHIPPED)),
+                "duration_s": "" if trial.duration is None else round(trial.duration.total_seconds(), 1),
+                **{f"return_seed_{seed}": trial.user_attrs.get(f"return_seed_{seed}", "") for seed in settings.seeds},
+                "params": yaml.safe_dump(trial.params, default_flow_style=True, width=10**6).strip(),
+            }
+        )
+    csv_path = os.path.join(settings.study_dir, "trials.csv")
+    with open(csv_path + ".partial", "w", newline="", encoding="utf-8") as stream:
+        writer = csv.DictWriter(stream, fieldnames=list(rows[0]) if rows else ["number"])
+        writer.writeheader()
+        writer.writerows(rows)
+    os.replace(csv_path + ".partial", csv_path)
+    complete = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+    if not complete:
+        raise RuntimeError(f"no trial of study {settings.name} completed; see {csv_path}")
+    best = max(complete, key=lambda trial: float(trial.value))  # type: ignore[arg-type]
+    print(f"{'trial':>5}  {'state':<8} {'value':>9}  params")
+    for row in sorted(rows, key=lambda r: (r["state"] != "COMPLETE", -float(r["value"]) if r["value"] != "" else math.inf)):
+        label = "shipped entry" if row["shipped"] else row["params"]
+        print(f"{row['number']:>5}  {row['state']:<8} {row['value']!s:>9}  {label}")
+    with open(str(best.user_attrs["hyperparams"]), encoding="utf-8") as stream:
+        best_entry = yaml.safe_load(stream)[settings.env_id]
+    best_file = os.path.join(settings.study_dir, "best_hyperparams.yml")
+    origin = "the shipped entry" if best.user_attrs.get(_SHIPPED) else f"trial {best.number}"
+    _write_entry(
+        best_file,
+        settings.env_id,
+        best_entry,
+        f"Best of {len(_finished(study))} trials of study {settings.name} ({origin}): mean final return "
+        f"{best.value:.2f} over seeds {list(settings.seeds)}, {settings.n_timesteps or 'entry'} timesteps",
+    )
+    print(f"Best: {origin}, mean final return {best.value:.2f}; hyperparameters in {best_file} (use with -conf)")
+    return TuneResult(settings.study_dir, float(best.value), dict(best.params), best_file, len(_finished(study)))  # type: ignore[arg-type]
+
+
+__all__ = ["PRUNER_NAMES", "SAMPLER_NAMES", "TrialEvalCallback", "TuneResult", "TuneSettings", "trial_entry", "tune"]
