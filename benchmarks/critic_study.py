@@ -19,6 +19,7 @@ Usage::
 
     python benchmarks/critic_study.py --workers 2                       # the evidence grid, seeds 1000-1009
     python benchmarks/critic_study.py --grid screen --workers 2         # the design screen on tuning seeds 0-4
+    python benchmarks/critic_study.py --grid tuned --workers 2          # the equally tuned algorithms, fresh seeds
     python benchmarks/critic_study.py --configs adc ddpg --workers 2    # a subset (resumes the rest later)
     python benchmarks/critic_study.py --quick                           # a smoke run
 """
@@ -51,16 +52,26 @@ RUNS_DIR = ROOT / "runs" / "critic_study"
 RESULTS_DIR = ROOT / "results" / "critic_study"
 DOCS_STATIC = ROOT.parent / "docs" / "_static" / "benchmarks"
 
-#: Configuration name -> (algorithm, hyperparameter overrides of its shipped entry).
-CONFIGS: dict[str, tuple[str, dict[str, Any]]] = {
-    "adc": ("adc", {}),
-    "adc_paper": ("adc", {"critic_design": "paper"}),
-    "adc_state_value": ("adc", {"critic_design": "state_value"}),
-    "adc_legendre": ("adc", {"critic_design": "legendre"}),
-    "adc_action_network": ("adc", {"critic_design": "action_network", "n_intervals": 16}),
-    "ddpg": ("ddpg", {}),
-    "td3": ("td3", {}),
-    "sac": ("sac", {}),
+#: The winners of the equal-budget tuning (``benchmarks/fair_tuning.py``), one ``{algo}.yml`` each.
+TUNED = ROOT / "results" / "fair_tuning" / "hyperparams"
+
+#: Configuration name -> (algorithm, hyperparameter overrides, folder of ``{algo}.yml`` files: ``None`` for the
+#: shipped ones).
+CONFIGS: dict[str, tuple[str, dict[str, Any], Path | None]] = {
+    "adc": ("adc", {}, None),
+    "adc_paper": ("adc", {"critic_design": "paper"}, None),
+    "adc_state_value": ("adc", {"critic_design": "state_value"}, None),
+    "adc_legendre": ("adc", {"critic_design": "legendre"}, None),
+    "adc_action_network": ("adc", {"critic_design": "action_network", "n_intervals": 16}, None),
+    "ddpg": ("ddpg", {}, None),
+    "td3": ("td3", {}, None),
+    "sac": ("sac", {}, None),
+    "adc_tuned": ("adc", {}, TUNED),
+    "ddpg_tuned": ("ddpg", {}, TUNED),
+    "td3_tuned": ("td3", {}, TUNED),
+    "sac_tuned": ("sac", {}, TUNED),
+    # The RL Zoo's published DDPG Pendulum settings: the bar the shipped DDPG entry must clear.
+    "ddpg_zoo": ("ddpg", {}, ROOT / "configs" / "rl_zoo"),
 }
 
 #: Grid name -> (environments, seeds, default configurations).
@@ -77,10 +88,16 @@ GRIDS: dict[str, tuple[list[str], list[int], list[str]]] = {
         list(range(5)),
         ["adc_legendre", "adc_action_network", "ddpg", "adc_state_value", "adc_paper"],
     ),
+    # The equally tuned algorithms on fresh seeds (the paper's critic on the same seeds: the evidence grid).
+    "tuned": (
+        ["sb3_adc/NoisyPendulum-v1"],
+        list(range(1000, 1010)),
+        ["adc_tuned", "ddpg_tuned", "td3_tuned", "sac_tuned", "ddpg_zoo"],
+    ),
 }
 
-#: The configuration whose improvement over the others is measured.
-REFERENCE = "adc"
+#: Grid -> the configuration whose improvement over the others is measured.
+REFERENCES = {"evidence": "adc", "screen": "adc_legendre", "tuned": "adc_tuned"}
 
 
 def report(outcome: RunOutcome, done: int, total: int) -> None:
@@ -92,7 +109,7 @@ def report(outcome: RunOutcome, done: int, total: int) -> None:
 
 def run_config(name: str, envs: list[str], seeds: list[int], folder: Path, n_timesteps: int, workers: int) -> dict[str, str]:
     """Train (or resume, or skip when finished) one configuration's grid; return its tables."""
-    algo, overrides = CONFIGS[name]
+    algo, overrides, conf_folder = CONFIGS[name]
     settings = BenchmarkSettings(
         algos=[algo],
         env_ids=envs,
@@ -100,6 +117,7 @@ def run_config(name: str, envs: list[str], seeds: list[int], folder: Path, n_tim
         log_folder=str(folder / name),
         n_timesteps=n_timesteps,
         overrides=dict(overrides),
+        conf_folder=None if conf_folder is None else str(conf_folder),
         eval_episodes=5,
         final_eval_episodes=20,
         device="cpu",
@@ -136,11 +154,11 @@ def _interval(data: dict[str, Any], func: Any, reps: int, seed: int) -> tuple[di
     return points, intervals
 
 
-def summary(final: pd.DataFrame, evaluations: pd.DataFrame, reps: int) -> pd.DataFrame:
+def summary(final: pd.DataFrame, evaluations: pd.DataFrame, reps: int, reference: str) -> pd.DataFrame:
     """
     Per environment and configuration: final-return IQM and mean with CIs, across-seed std, area under the
     evaluation curve (per run: the mean evaluation return over the run, trapezoidal in timesteps) with its IQM
-    and CI, and the probability that :data:`REFERENCE` improves on the configuration (final return), with CI.
+    and CI, and the probability that ``reference`` improves on the configuration (final return), with CI.
     """
     rows = []
     for env, env_final in final.groupby("env", sort=True):
@@ -160,11 +178,11 @@ def summary(final: pd.DataFrame, evaluations: pd.DataFrame, reps: int) -> pd.Dat
         final_points, final_intervals = _interval(scores, iqm_mean, reps, 0)
         area_points, area_intervals = _interval(areas, iqm_mean, reps, 1)
         improvement: tuple[dict[str, Any], dict[str, Any]] = ({}, {})
-        if REFERENCE in scores:
+        if reference in scores:
             pairs = {
-                name: (scores[REFERENCE], other)
+                name: (scores[reference], other)
                 for name, other in scores.items()
-                if name != REFERENCE and other.shape == scores[REFERENCE].shape
+                if name != reference and other.shape == scores[reference].shape
             }
             if pairs:
                 improvement = _interval(pairs, metrics.probability_of_improvement, reps, 2)
@@ -191,20 +209,21 @@ def summary(final: pd.DataFrame, evaluations: pd.DataFrame, reps: int) -> pd.Dat
     return pd.DataFrame(rows)
 
 
-#: Columns of the formatted summary (``summary.md`` and ``summary_table.csv``, which the docs include).
-DISPLAY_COLUMNS = [
-    "env",
-    "configuration",
-    "runs",
-    "final IQM [95% CI]",
-    "final mean",
-    "across-seed std",
-    "AUC IQM [95% CI]",
-    f"P({REFERENCE} > configuration) [95% CI]",
-]
+def display_columns(reference: str) -> list[str]:
+    """Columns of the formatted summary (``summary.md`` and ``summary_table.csv``, which the docs include)."""
+    return [
+        "env",
+        "configuration",
+        "runs",
+        "final IQM [95% CI]",
+        "final mean",
+        "across-seed std",
+        "AUC IQM [95% CI]",
+        f"P({reference} > configuration) [95% CI]",
+    ]
 
 
-def display_table(table: pd.DataFrame) -> pd.DataFrame:
+def display_table(table: pd.DataFrame, reference: str) -> pd.DataFrame:
     """The summary with rounded numbers and CIs in brackets, one string per cell."""
     rows = []
     for row in table.itertuples():
@@ -223,14 +242,18 @@ def display_table(table: pd.DataFrame) -> pd.DataFrame:
                 improvement,
             ]
         )
-    return pd.DataFrame(rows, columns=DISPLAY_COLUMNS)
+    return pd.DataFrame(rows, columns=display_columns(reference))
 
 
-def markdown(table: pd.DataFrame) -> str:
-    display = display_table(table)
-    lines = ["| " + " | ".join(DISPLAY_COLUMNS) + " |", "|---|---|---:|---|---:|---:|---|---|"]
+def markdown(table: pd.DataFrame, reference: str) -> str:
+    display = display_table(table, reference)
+    lines = ["| " + " | ".join(display_columns(reference)) + " |", "|---|---|---:|---|---:|---:|---|---|"]
     lines += ["| " + " | ".join(row) + " |" for row in display.itertuples(index=False)]
     return "\n".join(lines) + "\n"
+
+
+def _hyperparams_origin(folder: Path | None) -> str:
+    return "shipped" if folder is None else str(folder.relative_to(ROOT.parent))
 
 
 def main() -> None:
@@ -260,10 +283,11 @@ def main() -> None:
     final.to_csv(output / FINAL_CSV, index=False)
     evaluations.to_csv(output / EVALUATIONS_CSV, index=False)
     merge(tables, EPISODES_CSV).to_csv(output / EPISODES_CSV, index=False)
-    table = summary(final, evaluations, args.reps)
+    reference = REFERENCES[args.grid]
+    table = summary(final, evaluations, args.reps, reference)
     table.to_csv(output / "summary.csv", index=False)
-    (output / "summary.md").write_text(markdown(table))
-    display_table(table).to_csv(output / "summary_table.csv", index=False)
+    (output / "summary.md").write_text(markdown(table, reference))
+    display_table(table, reference).to_csv(output / "summary_table.csv", index=False)
     plots = plot_results(evaluations, str(output), final=final, episodes=pd.read_csv(output / EPISODES_CSV), reps=args.reps)
     if not args.quick:
         DOCS_STATIC.mkdir(parents=True, exist_ok=True)
@@ -275,7 +299,14 @@ def main() -> None:
     wall_times[f"{len(wall_times)}: {' '.join(configs)}"] = round(elapsed, 1)
     metadata = {
         "grid": args.grid,
-        "configs": {config: {"algo": CONFIGS[config][0], "overrides": CONFIGS[config][1]} for config in tables},
+        "configs": {
+            config: {
+                "algo": CONFIGS[config][0],
+                "overrides": CONFIGS[config][1],
+                "hyperparams": _hyperparams_origin(CONFIGS[config][2]),
+            }
+            for config in tables
+        },
         "envs": envs,
         "seeds": seeds,
         "n_timesteps": args.n_timesteps,
@@ -291,7 +322,7 @@ def main() -> None:
     }
     metadata_path.write_text(json.dumps(metadata, indent=2) + "\n")
     print(f"\n{args.grid}: {len(seeds)} seeds x {len(configs)} configurations, {args.n_timesteps} steps per run")
-    print(markdown(table))
+    print(markdown(table, reference))
 
 
 if __name__ == "__main__":

@@ -75,8 +75,6 @@ def run_train(argv: Sequence[str]) -> None:
     from sb3_adc.zoo.experiment_manager import SafeExperimentManager
     from sb3_adc.zoo.safe_io import SafeStoreDict
 
-    if "-optimize" in argv or "--optimize-hyperparameters" in argv:
-        raise SystemExit("python -m sb3_adc.zoo: hyperparameter optimization (-optimize) is not supported by the bridge")
     register_algorithms()
     with _patched(zoo_train, ExperimentManager=SafeExperimentManager, StoreDict=SafeStoreDict), _argv(
         ["python -m sb3_adc.zoo train", *argv]

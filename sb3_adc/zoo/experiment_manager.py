@@ -10,13 +10,16 @@ from pathlib import Path
 from pprint import pprint
 from typing import Any
 
+import optuna
 import yaml
 from gymnasium import spaces
 from rl_zoo3.exp_manager import ExperimentManager
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_adc.config import ExperimentConfig, load_hyperparams, packaged_hyperparams_file
+from sb3_adc.config import ExperimentConfig, load_hyperparams, packaged_hyperparams_file, resolve_entry
+from sb3_adc.experiment.samplers import SAMPLERS, Space
+from sb3_adc.experiment.tuning import trial_entry
 
 
 class SafeExperimentManager(ExperimentManager):
@@ -81,6 +84,33 @@ class SafeExperimentManager(ExperimentManager):
             hyperparams["action_noise"] = experiment.make_action_noise(env.action_space)
             print(f"Applying {experiment.noise.noise_type} noise with std {experiment.noise.std}")
         return hyperparams
+
+    def hyperparameters_optimization(self) -> None:
+        """
+        The Zoo's ``-optimize``, drawing from sb3-adc's search spaces (:mod:`sb3_adc.experiment.samplers`).
+
+        The Zoo takes samplers only through its ``HYPERPARAMS_SAMPLER`` table, so this registers an adapter for
+        ``self.algo`` there (as ``ALGOS`` is extended for the algorithms): each draw is merged into the entry and
+        resolved by :func:`~sb3_adc.config.resolve_entry`, which validates it and builds the exploration noise.
+        """
+        from rl_zoo3.hyperparams_opt import HYPERPARAMS_SAMPLER
+
+        HYPERPARAMS_SAMPLER[self.algo] = self._sample_hyperparams
+        super().hyperparameters_optimization()
+
+    def _sample_hyperparams(
+        self, trial: optuna.Trial, n_actions: int, n_envs: int, additional_args: dict[str, Any]
+    ) -> dict[str, Any]:
+        """A draw of sb3-adc's search space, as constructor keywords (the Zoo's sampler signature)."""
+        base = dict(self._experiment().saved)
+        fixed = self.custom_hyperparams or {}
+        params = SAMPLERS[self.algo](Space(trial, base, fixed))
+        entry = trial_entry(base, params, fixed)
+        config = resolve_entry(self.algo, self.env_name.gym_id, entry, f"trial {trial.number}")
+        kwargs = dict(config.model_kwargs)
+        if config.noise is not None:
+            kwargs["action_noise"] = config.make_action_noise(spaces.Box(-1.0, 1.0, (n_actions,)))
+        return kwargs
 
     def _save_config(self, saved_hyperparams: dict[str, Any]) -> None:
         with open(os.path.join(self.params_path, "config.yml"), "w", encoding="utf-8") as stream:

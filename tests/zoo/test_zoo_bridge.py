@@ -139,3 +139,25 @@ def test_python_m_sb3_adc_zoo_help_from_another_directory(tmp_path):
     assert result.returncode == 0
     assert "{" in result.stdout
     assert "adc" in result.stdout.split("--algo")[1].split("}")[0]
+
+
+def test_zoo_optimize_draws_from_our_search_space(tmp_path, capsys):
+    """The Zoo's -optimize tunes ADC with sb3-adc's sampler: its critic knobs are searched, -params stay fixed."""
+    conf = write_conf(tmp_path, CONF)
+    logs = tmp_path / "logs"
+    args = ["train", "--algo", "adc", "--env", "Pendulum-v1", "-conf", conf, "-f", str(logs), "--seed", "0"]
+    extra = ["-optimize", "--n-trials", "2", "--n-evaluations", "1", "--eval-episodes", "1", "-n", "200"]
+    extra += ["--sampler", "random", "--pruner", "none", "--num-threads", "1", "-params", "gamma:0.5"]
+    storage = tmp_path / "study.log"
+    assert main([*args, *extra, "--storage", str(storage), "--study-name", "zoo"]) == 0
+    import optuna
+
+    study = optuna.load_study(
+        study_name="zoo", storage=optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(str(storage)))
+    )
+    assert len(study.trials) == 2
+    for trial in study.trials:
+        assert trial.state == optuna.trial.TrialState.COMPLETE
+        assert "critic_design" in trial.params
+        assert "n_intervals" in trial.params
+        assert "gamma" not in trial.params
