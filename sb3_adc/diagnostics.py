@@ -22,7 +22,7 @@ from __future__ import annotations
 import csv
 import math
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import IO, Any
 
 import gymnasium as gym
@@ -35,6 +35,8 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.type_aliases import PyTorchObs
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, sync_envs_normalization
+
+from sb3_adc.common.atomic import write_atomically
 
 #: One record per log time: ``timesteps``, the scalar keys measured then, and for ADC the arrays
 #: :data:`INTERVAL_VISITS_KEY` and :data:`ADVANTAGE_PROFILE_KEY`.
@@ -406,14 +408,6 @@ class CriticDiagnosticsCallback(BaseCallback):
         return True
 
 
-def _write_atomically(path: str, write: Callable[[IO[Any]], None], binary: bool = False) -> None:
-    """Write a file through a temporary file and ``os.replace``, so that a reader never sees it half-written."""
-    temporary = path + ".partial"
-    with open(temporary, "wb") if binary else open(temporary, "w", encoding="utf-8", newline="") as stream:
-        write(stream)
-    os.replace(temporary, path)
-
-
 def _scalar_keys(history: History) -> list[str]:
     keys: list[str] = []
     for record in history:
@@ -448,7 +442,7 @@ def save_history(history: History, folder: str) -> tuple[str, str]:
                 [index for index, record in enumerate(history) if key in record], dtype=np.int64
             )
     npz_path, csv_path = os.path.join(folder, HISTORY_NPZ), os.path.join(folder, HISTORY_CSV)
-    _write_atomically(npz_path, lambda stream: np.savez(stream, **arrays), binary=True)
+    write_atomically(npz_path, lambda stream: np.savez(stream, **arrays), binary=True)
 
     def write_csv(stream: IO[Any]) -> None:
         writer = csv.writer(stream)
@@ -456,7 +450,7 @@ def save_history(history: History, folder: str) -> tuple[str, str]:
         for index in range(len(history)):
             writer.writerow([int(arrays["timesteps"][index]), *(repr(float(arrays[key][index])) for key in keys)])
 
-    _write_atomically(csv_path, write_csv)
+    write_atomically(csv_path, write_csv)
     return npz_path, csv_path
 
 

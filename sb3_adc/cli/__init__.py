@@ -42,8 +42,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     Run ``sb3-adc`` with the given arguments (default: ``sys.argv[1:]``).
 
     :param argv: The command-line arguments
-    :return: The exit status: 0 on success, 1 if benchmark runs failed, 2 for invalid input or a missing extra,
-        130 when interrupted
+    :return: The exit status: 0 on success, 1 if benchmark runs failed or training diverged (NaN or inf), 2 for
+        invalid input or a missing extra, 130 when interrupted
     """
     try:
         parser = build_parser()
@@ -53,11 +53,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     # Imported once the parser exists: the experiment extra is there.
     from sb3_adc.cli.common import CommandError
     from sb3_adc.experiment import RunInterrupted
+    from sb3_adc.experiment.benchmark import RunSettingsMismatch
+    from sb3_adc.experiment.divergence import TrainingDiverged
 
     args = parser.parse_args(argv)
     try:
         return int(args.handler(args))
-    except (HyperparamsError, CommandError, FileNotFoundError, FileExistsError) as error:
+    except (HyperparamsError, CommandError, FileNotFoundError, FileExistsError, RunSettingsMismatch) as error:
         print(f"sb3-adc {args.command}: error: {error}", file=sys.stderr)
         return 2
     except ModuleNotFoundError as error:
@@ -69,6 +71,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except RunInterrupted:
         return 130
+    except TrainingDiverged as error:
+        print(f"sb3-adc {args.command}: error: {error}", file=sys.stderr)
+        return 1
 
 
 __all__ = ["build_parser", "main"]

@@ -4,22 +4,30 @@ as Ray tasks on a Ray cluster, resumable, summarised in tidy CSVs.
 
 Run ``(algo, env, seed)`` lives in ``{log_folder}/{algo}/{env_name}_seed{seed}/`` (the RL-Zoo run layout
 with the seed as run name). Re-running a grid keeps finished runs (they are skipped), resumes interrupted
-ones from their last checkpoint and starts the others. Results are written to ``{log_folder}``:
-``evaluations.csv`` (the evaluation curves), ``episodes.csv`` (training episodes) and ``final.csv`` (final
-evaluations); see :mod:`sb3_adc.experiment.results` for the columns.
+ones from their last checkpoint and starts the others; a run on disk made with other settings (resolved
+hyperparameters, budget, evaluation) is refused before anything runs (:class:`RunSettingsMismatch`). Results
+are written to ``{log_folder}``: ``evaluations.csv`` (the evaluation curves), ``episodes.csv`` (training
+episodes) and ``final.csv`` (final evaluations), with the rows of every finished run in the folder, of this
+grid or not; see :mod:`sb3_adc.experiment.results` for the columns.
 """
 
 from __future__ import annotations
 
 import concurrent.futures
+import dataclasses
+import glob
 import multiprocessing
 import os
+import re
 import traceback
+import warnings
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-from sb3_adc.experiment.layout import RunLayout, env_name
+import yaml
+
+from sb3_adc.experiment.layout import DamagedFileError, RunLayout, env_name
 from sb3_adc.experiment.results import (
     EPISODE_COLUMNS,
     EVALUATION_COLUMNS,
@@ -36,6 +44,29 @@ from sb3_adc.experiment.settings import TrainSettings
 EVALUATIONS_CSV = "evaluations.csv"
 EPISODES_CSV = "episodes.csv"
 FINAL_CSV = "final.csv"
+
+#: Run settings that do not change a run's results: a run on disk may differ from the grid in them.
+_NEUTRAL_SETTINGS = frozenset({"log_folder", "run_dir", "device", "verbose", "progress_bar"})
+#: Run settings compared through the resolved hyperparameters they produce (``config.yml``), not as given.
+_RESOLVED_SETTINGS = frozenset({"conf_file", "overrides", "env_kwargs", "n_timesteps"})
+_RUN_FOLDER = re.compile(r"^.+_seed(\d+)$")
+
+
+class RunSettingsMismatch(ValueError):
+    """
+    Runs on disk were made with other settings than the grid asks for (a user error: exit status 2).
+
+    :param differences: Each mismatched run's folder and its differing keys, as ``key: on disk -> asked``
+    """
+
+    def __init__(self, differences: dict[str, list[str]]):
+        lines = [f"  {run_dir}: {'; '.join(keys)}" for run_dir, keys in differences.items()]
+        super().__init__(
+            f"{len(differences)} run(s) on disk were made with other settings than this benchmark asks for "
+            "(key: on disk -> asked):\n" + "\n".join(lines) + "\nUse another --log-folder, give the settings of "
+            "those runs, or delete them to redo them."
+        )
+        self.differences = differences
 
 
 @dataclass(frozen=True)
@@ -141,6 +172,74 @@ class RunOutcome:
     episodes: list[Row] = field(default_factory=list)
     final: Row | None = None
     error: str = ""
+
+
+def check_runs_on_disk(settings: BenchmarkSettings) -> None:
+    """
+    Check that the runs of the grid already on disk were made with the grid's settings, so that skipping or
+    resuming them gives the runs asked for: their resolved hyperparameters (``config.yml``, which holds the
+    budget and the ``-params`` overrides) and their run settings (``args.yml``: evaluation frequency and
+    episodes, ...). Also checks every run's hyperparameters before anything is written.
+
+    :param settings: The grid
+    :raises HyperparamsError: for invalid hyperparameters of a run
+    :raises RunSettingsMismatch: naming each mismatched run and its differing keys
+    """
+    from sb3_adc.config import load_hyperparams
+
+    differences: dict[str, list[str]] = {}
+    for spec in settings.grid():
+        train_settings = settings.train_settings(spec)
+        config = load_hyperparams(
+            spec.algo, spec.env_id, train_settings.conf_file, train_settings.overrides, train_settings.n_timesteps
+        )
+        layout = RunLayout(spec.run_dir(settings.log_folder), spec.env_id)
+        if not os.path.isfile(layout.args) or not os.path.isfile(layout.config):
+            continue
+        with open(layout.config, encoding="utf-8") as stream:
+            saved_config = yaml.safe_load(stream)
+        asked_config = yaml.safe_load(yaml.safe_dump(config.saved))
+        keys = _differences(saved_config if isinstance(saved_config, dict) else {}, asked_config)
+        keys += _differences(_compared_settings(TrainSettings.load(layout.args)), _compared_settings(train_settings))
+        if keys:
+            differences[layout.run_dir] = keys
+    if differences:
+        raise RunSettingsMismatch(differences)
+
+
+def _compared_settings(settings: TrainSettings) -> dict[str, Any]:
+    ignored = _NEUTRAL_SETTINGS | _RESOLVED_SETTINGS
+    return {key: value for key, value in dataclasses.asdict(settings).items() if key not in ignored}
+
+
+def _differences(saved: dict[str, Any], asked: dict[str, Any]) -> list[str]:
+    missing = "(not set)"
+    return [
+        f"{key}: {saved.get(key, missing)!r} -> {asked.get(key, missing)!r}"
+        for key in sorted(set(saved) | set(asked))
+        if saved.get(key, missing) != asked.get(key, missing)
+    ]
+
+
+def runs_on_disk(log_folder: str) -> list[RunSpec]:
+    """
+    The benchmark runs in a log folder (``{algo}/{env_name}_seed{seed}/`` with their ``args.yml``), by folder.
+
+    :param log_folder: The benchmark's log folder
+    """
+    specs = []
+    for args_path in sorted(glob.glob(os.path.join(glob.escape(log_folder), "*", "*_seed*", "*", "args.yml"))):
+        run_dir = os.path.dirname(os.path.dirname(args_path))
+        if not _RUN_FOLDER.match(os.path.basename(run_dir)):
+            continue
+        try:
+            saved = TrainSettings.load(args_path)
+        except (ValueError, TypeError, yaml.YAMLError):
+            continue
+        spec = RunSpec(saved.algo, saved.env_id, saved.seed)
+        if os.path.normpath(spec.run_dir(log_folder)) == os.path.normpath(run_dir):
+            specs.append(spec)
+    return specs
 
 
 def run_one(spec: RunSpec, settings: BenchmarkSettings) -> RunOutcome:
@@ -261,10 +360,13 @@ def run_benchmark(
     :param workers: Processes of the local backend (``None``: the number of CPUs)
     :param address: Ray cluster address (Ray backend)
     :param report: Called with (outcome, runs done, runs in total) as each run finishes
+    :raises HyperparamsError: for invalid hyperparameters (before any run starts)
+    :raises RunSettingsMismatch: if runs on disk were made with other settings (before any run starts)
     """
     specs = settings.grid()
     if not specs:
         raise ValueError("the grid is empty: give at least one algorithm, environment and seed.")
+    check_runs_on_disk(settings)
     if backend == "local":
         outcomes_iterator: Iterable[RunOutcome] = run_local(specs, settings, workers or os.cpu_count() or 1)
     elif backend == "ray":
@@ -286,12 +388,33 @@ def run_benchmark(
 
 def write_tables(outcomes: list[RunOutcome], folder: str) -> dict[str, str]:
     """
-    Write the evaluation, episode and final tables of the outcomes.
+    Write the evaluation, episode and final tables of the outcomes and of the other finished runs in the
+    folder (runs of earlier grids: a smaller grid never drops their rows).
 
     :param outcomes: The runs' outcomes
-    :param folder: Where to write them
+    :param folder: Where to write them (the benchmark's log folder)
     :return: Table name -> path
     """
+    done = {outcome.spec for outcome in outcomes}
+    outcomes = list(outcomes)
+    for spec in runs_on_disk(folder):
+        if spec in done:
+            continue
+        layout = RunLayout(spec.run_dir(folder), spec.env_id)
+        if not layout.is_finished():
+            continue
+        try:
+            outcomes.append(
+                RunOutcome(
+                    spec,
+                    "skipped",
+                    evaluations=evaluation_rows(layout, spec.algo, spec.seed),
+                    episodes=episode_rows(layout, spec.algo, spec.seed),
+                    final=final_row(layout, spec.algo, spec.seed),
+                )
+            )
+        except (DamagedFileError, OSError, ValueError) as error:
+            warnings.warn(f"the results of {spec} are left out of the tables: {error}", stacklevel=2)
     paths = {name: os.path.join(folder, name) for name in (EVALUATIONS_CSV, EPISODES_CSV, FINAL_CSV)}
     write_table([row for outcome in outcomes for row in outcome.evaluations], EVALUATION_COLUMNS, paths[EVALUATIONS_CSV])
     write_table([row for outcome in outcomes for row in outcome.episodes], EPISODE_COLUMNS, paths[EPISODES_CSV])

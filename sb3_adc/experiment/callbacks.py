@@ -1,15 +1,24 @@
-"""Callbacks of a training run: periodic evaluation and checkpoints that a resumed run continues seamlessly."""
+"""
+Callbacks of a training run: periodic evaluation and checkpoints that a resumed run continues seamlessly.
+
+Every file a resume reads is written atomically (:mod:`sb3_adc.common.atomic`), and :func:`checkpoint_damage`
+tells whether a checkpoint on disk can be resumed from.
+"""
 
 from __future__ import annotations
 
 import os
+import zipfile
 from dataclasses import dataclass, field
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
+from stable_baselines3.common.save_util import load_from_pkl
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_adc.experiment.layout import Checkpoint, RunLayout
+from sb3_adc.common.atomic import atomic_path, write_atomically
+from sb3_adc.experiment.divergence import check_finite_weights
+from sb3_adc.experiment.layout import Checkpoint, DamagedFileError, RunLayout
 
 
 @dataclass
@@ -32,15 +41,22 @@ class EvaluationHistory:
         Read an ``evaluations.npz`` (an empty history if the file does not exist).
 
         :param path: The file
+        :raises DamagedFileError: if the file is truncated or does not hold an evaluation history
         """
         if not os.path.isfile(path):
             return cls()
-        with np.load(path) as data:
-            return cls(
-                timesteps=[int(step) for step in data["timesteps"]],
-                results=[[float(value) for value in row] for row in data["results"]],
-                ep_lengths=[[int(value) for value in row] for row in data["ep_lengths"]],
-            )
+        try:
+            with np.load(path) as data:
+                history = cls(
+                    timesteps=[int(step) for step in data["timesteps"]],
+                    results=[[float(value) for value in row] for row in data["results"]],
+                    ep_lengths=[[int(value) for value in row] for row in data["ep_lengths"]],
+                )
+        except (OSError, ValueError, EOFError, KeyError, TypeError, zipfile.BadZipFile) as error:
+            raise DamagedFileError(path, f"{type(error).__name__}: {error}") from error
+        if not len(history.timesteps) == len(history.results) == len(history.ep_lengths):
+            raise DamagedFileError(path, "timesteps, results and ep_lengths have different lengths")
+        return history
 
     def until(self, timesteps: int) -> EvaluationHistory:
         """
@@ -55,18 +71,23 @@ class EvaluationHistory:
 
     def save(self, path: str) -> None:
         """
-        Write the history as ``evaluations.npz`` (the format of SB3's ``EvalCallback``).
+        Write the history as ``evaluations.npz`` (the format of SB3's ``EvalCallback``), atomically.
 
         :param path: The file
         """
-        np.savez(path, timesteps=self.timesteps, results=self.results, ep_lengths=self.ep_lengths)
+        write_atomically(
+            path,
+            lambda stream: np.savez(stream, timesteps=self.timesteps, results=self.results, ep_lengths=self.ep_lengths),
+            binary=True,
+        )
 
 
 class PeriodicEvalCallback(EvalCallback):
     """
     SB3's ``EvalCallback``, scheduled on the timestep count rather than on its own call count, and started from
     the evaluations of an interrupted run: a resumed run evaluates at the same timesteps, keeps the earlier
-    results in ``evaluations.npz`` and only saves ``best_model.zip`` when it beats them.
+    results in ``evaluations.npz`` and only saves ``best_model.zip`` when it beats them. Both files are written
+    atomically (``EvalCallback`` writes them in place, where a crash leaves them truncated).
 
     :param eval_env: The evaluation environments
     :param every: Evaluate every this many timesteps (all training environments together)
@@ -96,6 +117,10 @@ class PeriodicEvalCallback(EvalCallback):
         )
         self.every = every
         self.next_evaluation = every
+        self.evaluations_file = os.path.join(run_dir, "evaluations.npz")
+        self.best_model_file = os.path.join(run_dir, "best_model.zip")
+        # `EvalCallback` would write best_model.zip in place: this class saves it (see `_on_step`).
+        self.best_model_save_path = None
         self.evaluations_timesteps = list(history.timesteps)
         self.evaluations_results = list(history.results)
         self.evaluations_length = list(history.ep_lengths)
@@ -111,14 +136,22 @@ class PeriodicEvalCallback(EvalCallback):
         if self.num_timesteps < self.next_evaluation:
             return True
         self.next_evaluation = (self.num_timesteps // self.every + 1) * self.every
-        return super()._on_step()
+        best_before = self.best_mean_reward
+        # `EvalCallback` writes the whole history with `np.savez(self.log_path, ...)`: point it to the temporary file.
+        with atomic_path(self.evaluations_file) as temporary:
+            self.log_path = temporary
+            continue_training = super()._on_step()
+        if self.best_mean_reward > best_before:
+            with atomic_path(self.best_model_file) as temporary:
+                self.model.save(temporary)
+        return continue_training
 
 
 class CheckpointSaver(BaseCallback):
     """
     Save the model, its replay buffer and its ``VecNormalize`` statistics every ``every`` timesteps, keeping the
     ``keep`` latest checkpoints. Give it after the evaluation callback: a checkpoint then includes the evaluation
-    of its timestep.
+    of its timestep. Each file is written atomically, and a model whose weights are not finite is never saved.
 
     :param layout: The run's paths
     :param every: Timesteps between checkpoints
@@ -142,17 +175,23 @@ class CheckpointSaver(BaseCallback):
         return True
 
     def save(self) -> Checkpoint:
-        """Save a checkpoint at the current timestep now (also used when training is interrupted)."""
+        """
+        Save a checkpoint at the current timestep now (also used when training is interrupted).
+
+        :raises NonFiniteWeights: if the model's weights hold NaN or inf (nothing is written)
+        """
+        check_finite_weights(self.model)
         checkpoint = self.layout.checkpoint(self.model.num_timesteps)
         # Replay buffer and statistics first: a checkpoint counts once its model zip exists.
         if hasattr(self.model, "save_replay_buffer") and getattr(self.model, "replay_buffer", None) is not None:
-            self.model.save_replay_buffer(checkpoint.replay_buffer)
+            with atomic_path(checkpoint.replay_buffer) as temporary:
+                self.model.save_replay_buffer(temporary)
         vec_normalize = self.model.get_vec_normalize_env()
         if vec_normalize is not None:
-            vec_normalize.save(checkpoint.vecnormalize)
-        partial = checkpoint.model + ".partial"
-        self.model.save(partial)
-        os.replace(partial, checkpoint.model)
+            with atomic_path(checkpoint.vecnormalize) as temporary:
+                vec_normalize.save(temporary)
+        with atomic_path(checkpoint.model) as temporary:
+            self.model.save(temporary)
         self._prune()
         return checkpoint
 
@@ -161,3 +200,31 @@ class CheckpointSaver(BaseCallback):
             for path in (old.model, old.replay_buffer, old.vecnormalize):
                 if os.path.exists(path):
                     os.remove(path)
+
+
+def checkpoint_damage(checkpoint: Checkpoint) -> str | None:
+    """
+    Why a checkpoint cannot be resumed from, or ``None`` if it can: its model zip must open with intact
+    members (CRC checked) and its replay buffer and ``VecNormalize`` statistics, where present, must unpickle.
+
+    :param checkpoint: The checkpoint
+    """
+    if not os.path.isfile(checkpoint.model):
+        return f"{os.path.basename(checkpoint.model)} is missing"
+    try:
+        with zipfile.ZipFile(checkpoint.model) as archive:
+            broken = archive.testzip()
+            names = archive.namelist()
+    except (OSError, zipfile.BadZipFile, EOFError, ValueError) as error:
+        return f"{os.path.basename(checkpoint.model)} does not open as a zip ({error})"
+    if broken is not None:
+        return f"{os.path.basename(checkpoint.model)}: member {broken} is corrupted"
+    if "data" not in names:
+        return f"{os.path.basename(checkpoint.model)} holds no SB3 model (no `data` member)"
+    for path in (checkpoint.replay_buffer, checkpoint.vecnormalize):
+        if os.path.isfile(path):
+            try:
+                load_from_pkl(path)
+            except Exception as error:  # unpickling a damaged file can raise almost anything
+                return f"{os.path.basename(path)} does not unpickle ({type(error).__name__}: {error})"
+    return None

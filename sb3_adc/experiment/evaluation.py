@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import asdict, dataclass
 
 import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.vec_env import VecEnv
+
+from sb3_adc.common.atomic import write_atomically
 
 
 @dataclass
@@ -49,15 +50,12 @@ class FinalEvaluation:
 
     def save(self, path: str) -> None:
         """
-        Write the evaluation as JSON (with its mean and std), through a temporary file.
+        Write the evaluation as JSON (with its mean and std), atomically.
 
         :param path: The file
         """
         data = {**asdict(self), "mean_return": self.mean_return, "std_return": self.std_return}
-        temporary = path + ".partial"
-        with open(temporary, "w", encoding="utf-8") as stream:
-            json.dump(data, stream, indent=2)
-        os.replace(temporary, path)
+        write_atomically(path, lambda stream: json.dump(data, stream, indent=2))
 
     @classmethod
     def load(cls, path: str) -> FinalEvaluation:

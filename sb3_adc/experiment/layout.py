@@ -28,6 +28,20 @@ CHECKPOINT_PREFIX = "rl_model"
 _CHECKPOINT_PATTERN = re.compile(rf"^{CHECKPOINT_PREFIX}_(\d+)_steps\.zip$")
 
 
+class DamagedFileError(ValueError):
+    """
+    A file of a run cannot be read (truncated or corrupted, e.g. by a crash while it was written).
+
+    :param path: The file
+    :param reason: What is wrong with it
+    """
+
+    def __init__(self, path: str, reason: str):
+        super().__init__(f"{path} is damaged: {reason}")
+        self.path = path
+        self.reason = reason
+
+
 def env_name(env_id: str) -> str:
     """
     The environment's name in paths: the id with ``/`` replaced by ``-`` (as the RL Zoo).
@@ -57,14 +71,27 @@ def run_ids(log_folder: str, algo: str, env_id: str) -> list[int]:
 
 def new_run_dir(log_folder: str, algo: str, env_id: str) -> str:
     """
-    The folder of a new run: the next free run id.
+    Create the folder of a new run, with the next free run id, and return it.
+
+    The folder is claimed with ``os.mkdir``, which fails if it exists: of runs started at the same time into
+    one log folder, each gets its own folder (the next id is tried until one is free).
 
     :param log_folder: The log folder
     :param algo: The algorithm's name
     :param env_id: The environment id
     """
-    ids = run_ids(log_folder, algo, env_id)
-    return os.path.join(log_folder, algo, f"{env_name(env_id)}_{(ids[-1] if ids else 0) + 1}")
+    os.makedirs(os.path.join(log_folder, algo), exist_ok=True)
+    run_id = 1
+    while True:
+        ids = run_ids(log_folder, algo, env_id)
+        run_id = max(run_id, (ids[-1] if ids else 0) + 1)
+        run_dir = os.path.join(log_folder, algo, f"{env_name(env_id)}_{run_id}")
+        try:
+            os.mkdir(run_dir)
+        except FileExistsError:
+            run_id += 1  # another run claimed this id (or a file has this name): try the next one
+            continue
+        return run_dir
 
 
 def latest_run_dir(log_folder: str, algo: str, env_id: str) -> str | None:

@@ -2,43 +2,70 @@
 
 from __future__ import annotations
 
-import os
+import io
+import json
+import time
 
 import pandas as pd
 
+from sb3_adc.common.atomic import write_atomically
 from sb3_adc.experiment.envs import TOTAL_STEPS_KEY
+from sb3_adc.experiment.layout import DamagedFileError
 
 
 def read_monitor(path: str) -> pd.DataFrame:
     """
     The episodes of a monitor CSV: columns ``r`` (return), ``l`` (length), ``t`` (seconds) and, for runs of
-    this package, ``total_steps`` (steps of that environment at the end of the episode).
+    this package, ``total_steps`` (steps of that environment at the end of the episode). A last line cut short
+    (a run killed while writing it) is left out.
 
     :param path: The ``*.monitor.csv`` file
     """
-    return pd.read_csv(path, skiprows=1)
+    with open(path, encoding="utf-8", newline="") as stream:
+        text = stream.read()
+    complete = text[: text.rfind("\n") + 1]
+    if complete.count("\n") < 2:  # killed while the header was written: no episode
+        return pd.DataFrame({"r": [], "l": [], "t": []})
+    return pd.read_csv(io.StringIO(complete), skiprows=1)
 
 
 def truncate_monitor(path: str, steps: int) -> int:
     """
-    Drop the episodes that ended after ``steps`` steps of the environment (work lost since a checkpoint).
+    Drop the episodes that ended after ``steps`` steps of the environment (work lost since a checkpoint), and
+    a last line without its line end (an episode being written when the run was killed). The file is rewritten
+    atomically.
 
     :param path: The ``*.monitor.csv`` file
     :param steps: The environment's step count at the checkpoint
     :return: The number of episodes dropped
+    :raises DamagedFileError: if the file does not start with a monitor header
     """
-    with open(path, encoding="utf-8") as stream:
+    with open(path, encoding="utf-8", newline="") as stream:
         lines = stream.read().splitlines(keepends=True)
+    if lines and not lines[-1].endswith("\n"):
+        lines = lines[:-1]  # `Monitor` writes whole lines: a line without its end was cut short
     if len(lines) < 2:
+        # Killed while `Monitor` wrote its header: no episode was recorded; write the header again.
+        header_line = "#" + json.dumps({"t_start": time.time()}) + "\n"
+        columns_line = ",".join(("r", "l", "t", TOTAL_STEPS_KEY)) + "\r\n"
+        write_atomically(path, lambda stream: stream.writelines([header_line, columns_line]))
         return 0
+    if not lines[0].startswith("#"):
+        raise DamagedFileError(path, "the first line is not a monitor header (`#{...}`)")
     header, columns, rows = lines[0], lines[1], lines[2:]
     names = columns.strip().split(",")
     if TOTAL_STEPS_KEY not in names:
         return 0
     column = names.index(TOTAL_STEPS_KEY)
-    kept = [row for row in rows if row.strip() and int(float(row.split(",")[column])) <= steps]
-    temporary = path + ".partial"
-    with open(temporary, "w", encoding="utf-8") as stream:
-        stream.writelines([header, columns, *kept])
-    os.replace(temporary, path)
+    kept = [row for row in rows if _steps(row, column) <= steps]
+    write_atomically(path, lambda stream: stream.writelines([header, columns, *kept]))
     return len(rows) - len(kept)
+
+
+def _steps(row: str, column: int) -> float:
+    """The ``total_steps`` of a monitor row; infinite (dropped) for a row that does not hold one."""
+    fields = row.strip().split(",")
+    try:
+        return float(fields[column])
+    except (IndexError, ValueError):
+        return float("inf")

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sb3_adc.common.atomic import write_atomically
 from sb3_adc.experiment.callbacks import EvaluationHistory
 from sb3_adc.experiment.envs import TOTAL_STEPS_KEY
 from sb3_adc.experiment.evaluation import FinalEvaluation
@@ -129,7 +130,7 @@ def write_table(rows: list[Row], columns: tuple[str, ...], path: str) -> pd.Data
 
     :param rows: The rows
     :param columns: The columns, in order
-    :param path: The CSV file (written through a temporary file)
+    :param path: The CSV file (written atomically)
     :return: The table
     """
     table = pd.DataFrame(rows, columns=list(columns))
@@ -138,7 +139,5 @@ def write_table(rows: list[Row], columns: tuple[str, ...], path: str) -> pd.Data
     directory = os.path.dirname(path)
     if directory:
         os.makedirs(directory, exist_ok=True)
-    temporary = path + ".partial"
-    table.to_csv(temporary, index=False)
-    os.replace(temporary, path)
+    write_atomically(path, lambda stream: table.to_csv(stream, index=False))
     return table

@@ -20,11 +20,19 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
 from tqdm import TqdmExperimentalWarning
 
+from sb3_adc.common.atomic import atomic_path
 from sb3_adc.config import ExperimentConfig, HyperparamsError, load_hyperparams, resolve_entry
-from sb3_adc.experiment.callbacks import CheckpointSaver, EvaluationHistory, PeriodicEvalCallback
+from sb3_adc.experiment.callbacks import CheckpointSaver, EvaluationHistory, PeriodicEvalCallback, checkpoint_damage
+from sb3_adc.experiment.divergence import (
+    FiniteCheck,
+    NonFiniteValue,
+    NonFiniteWeights,
+    TrainingDiverged,
+    check_finite_weights,
+)
 from sb3_adc.experiment.envs import make_vec_env, wrap_vec_env
 from sb3_adc.experiment.evaluation import FinalEvaluation, evaluate_final
-from sb3_adc.experiment.layout import Checkpoint, RunLayout, latest_run_dir, new_run_dir
+from sb3_adc.experiment.layout import Checkpoint, DamagedFileError, RunLayout, latest_run_dir, new_run_dir
 from sb3_adc.experiment.monitor_files import truncate_monitor
 from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings
 
@@ -162,9 +170,22 @@ def find_run(log_folder: str, algo: str, env_id: str) -> str:
 
 
 def _latest_checkpoint(layout: RunLayout) -> Checkpoint | None:
+    """
+    The newest checkpoint that can be resumed from. A newer damaged one is reported and its files are renamed
+    ``*.damaged`` (kept for inspection, no longer a checkpoint: pruning and later resumes pass over it).
+    """
+    damaged = False
     for checkpoint in reversed(layout.checkpoints()):
-        if os.path.isfile(checkpoint.model):
+        damage = checkpoint_damage(checkpoint)
+        if damage is None:
             return checkpoint
+        damaged = True
+        for path in (checkpoint.model, checkpoint.replay_buffer, checkpoint.vecnormalize):
+            if os.path.exists(path):
+                os.replace(path, path + ".damaged")
+        print(f"The checkpoint at timestep {checkpoint.timesteps} is damaged ({damage}); its files are renamed *.damaged.")
+    if damaged:
+        print("No intact checkpoint is left: the run starts again from timestep 0.")
     return None
 
 
@@ -186,6 +207,9 @@ def _run(
         append_monitor=checkpoint is not None,
         vec_env=settings.vec_env,
     )
+    # Stop at the first NaN or inf, before it reaches the replay buffer or the weights (inside VecNormalize,
+    # whose statistics it would spoil); the evaluation environments are wrapped alike (`_evaluation_env`).
+    train_env = FiniteCheck(train_env, "training")
     statistics = checkpoint.vecnormalize if checkpoint is not None and os.path.isfile(checkpoint.vecnormalize) else None
     train_env = wrap_vec_env(config, train_env, training=True, statistics=statistics)
     model = _load_or_build(settings, config, train_env, checkpoint)
@@ -219,22 +243,35 @@ def _run(
     except KeyboardInterrupt:
         if saver.model is None:
             saver.init_callback(model)
-        saved = saver.save()
+        try:
+            saved = saver.save()
+        except NonFiniteWeights as error:
+            raise _diverged(layout, model, error) from None
         print(f"\nInterrupted: checkpoint at timestep {saved.timesteps} saved.")
         print(f"Continue with: sb3-adc train --resume {layout.run_dir}")
         raise RunInterrupted(layout.run_dir, saved.timesteps) from None
+    except (NonFiniteValue, NonFiniteWeights) as error:
+        train_env.close()
+        raise _diverged(layout, model, error) from None
     finally:
         eval_env.close()
 
+    try:
+        check_finite_weights(model)
+    except NonFiniteWeights as error:
+        train_env.close()
+        raise _diverged(layout, model, error) from None
     if settings.checkpoint_interval(config.n_timesteps) > 0:
-        latest = _latest_checkpoint(layout)
-        if latest is None or latest.timesteps != model.num_timesteps:
+        checkpoints = layout.checkpoints()
+        if not checkpoints or checkpoints[-1].timesteps != model.num_timesteps:
             # The replay buffer at the end, for training the run further (resume with a larger budget).
             saver.save()
-    model.save(layout.final_model)
+    with atomic_path(layout.final_model) as temporary:
+        model.save(temporary)
     vec_normalize = model.get_vec_normalize_env()
     if vec_normalize is not None:
-        vec_normalize.save(layout.vecnormalize)
+        with atomic_path(layout.vecnormalize) as temporary:
+            vec_normalize.save(temporary)
     final_env = _evaluation_env(config, settings, 1)
     if vec_normalize is not None:
         sync_envs_normalization(train_env, final_env)
@@ -252,6 +289,17 @@ def _run(
     )
 
 
+def _diverged(layout: RunLayout, model: BaseAlgorithm, error: NonFiniteValue | NonFiniteWeights) -> TrainingDiverged:
+    """The error that ends a run which met a NaN or inf: where, and which checkpoint is left to resume from."""
+    timesteps = model.num_timesteps
+    if isinstance(error, NonFiniteValue) and error.role == "training":
+        timesteps += model.n_envs  # the step in progress: SB3 counts it once the environments return
+    checkpoints = layout.checkpoints()
+    source = error.source if isinstance(error, NonFiniteValue) else "weights"
+    last = checkpoints[-1].timesteps if checkpoints else None
+    return TrainingDiverged(layout.run_dir, timesteps, source, str(error), last)
+
+
 def _restore_records(layout: RunLayout, config: ExperimentConfig, start: int) -> None:
     """Keep the evaluations and episodes up to ``start`` (the checkpoint); from scratch, remove them all."""
     if start == 0:
@@ -259,7 +307,13 @@ def _restore_records(layout: RunLayout, config: ExperimentConfig, start: int) ->
             if os.path.exists(path):
                 os.remove(path)
         return
-    EvaluationHistory.load(layout.evaluations).until(start).save(layout.evaluations)
+    try:
+        history = EvaluationHistory.load(layout.evaluations)
+    except DamagedFileError as error:
+        # The evaluations up to the checkpoint cannot be recovered; the run goes on without them.
+        print(f"{error}; the evaluations before timestep {start} are lost and the history restarts after it.")
+        history = EvaluationHistory()
+    history.until(start).save(layout.evaluations)
     for path in layout.monitor_files():
         truncate_monitor(path, start // config.n_envs)
 
@@ -283,5 +337,5 @@ def _load_or_build(
 
 
 def _evaluation_env(config: ExperimentConfig, settings: TrainSettings, n_envs: int) -> VecEnv:
-    env = make_vec_env(config, n_envs, settings.seed + EVAL_SEED_OFFSET)
+    env: VecEnv = FiniteCheck(make_vec_env(config, n_envs, settings.seed + EVAL_SEED_OFFSET), "evaluation")
     return wrap_vec_env(config, env, training=False)

@@ -16,8 +16,11 @@ def test_run_ids_follow_the_zoo(tmp_path):
         (folder / name).mkdir(parents=True)
     (folder / "Pendulum-v1_12").write_text("a file, not a run")
     assert run_ids(str(tmp_path), "adc", "Pendulum-v1") == [1, 7]
-    assert new_run_dir(str(tmp_path), "adc", "Pendulum-v1") == str(folder / "Pendulum-v1_8")
     assert latest_run_dir(str(tmp_path), "adc", "Pendulum-v1") == str(folder / "Pendulum-v1_7")
+    # The new run's folder is created (claimed): the next new run gets the id after it.
+    assert new_run_dir(str(tmp_path), "adc", "Pendulum-v1") == str(folder / "Pendulum-v1_8")
+    assert (folder / "Pendulum-v1_8").is_dir()
+    assert new_run_dir(str(tmp_path), "adc", "Pendulum-v1") == str(folder / "Pendulum-v1_9")
     assert latest_run_dir(str(tmp_path), "ddpg", "Pendulum-v1") is None
     assert new_run_dir(str(tmp_path), "ddpg", "sb3_adc/NoisyPendulum-v1").endswith("ddpg/sb3_adc-NoisyPendulum-v1_1")
 

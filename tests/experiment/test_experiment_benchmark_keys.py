@@ -1,0 +1,97 @@
+"""Benchmark runs on disk are reused only with the settings they were made with, and their rows are never dropped."""
+
+import os
+
+import pandas as pd
+import pytest
+
+from sb3_adc.cli import main
+from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSettingsMismatch, check_runs_on_disk, runs_on_disk
+
+TINY_DDPG = """\
+default:
+  n_timesteps: 100
+  policy: MlpPolicy
+  learning_starts: 50
+  batch_size: 16
+  buffer_size: 200
+  gamma: 0.9
+  policy_kwargs: "dict(net_arch=[4])"
+  env_kwargs: {max_episode_steps: 50}
+"""
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory):
+    """A finished grid of ddpg on Pendulum-v1 with seeds 0 and 1 (100 steps each) and the command that made it."""
+    folder = tmp_path_factory.mktemp("bench")
+    (folder / "conf").mkdir()
+    (folder / "conf" / "ddpg.yml").write_text(TINY_DDPG)
+    args = ["benchmark", "--algos", "ddpg", "--envs", "Pendulum-v1", "-f", str(folder / "logs"), "--workers", "1"]
+    args += ["--conf-folder", str(folder / "conf"), "--eval-freq", "50", "--eval-episodes", "1", "--final-eval-episodes", "1"]
+    assert main([*args, "--seeds", "0", "1"]) == 0
+    return folder / "logs", args
+
+
+def snapshot(folder):
+    return {
+        os.path.join(root, name): os.stat(os.path.join(root, name)).st_mtime_ns
+        for root, _, names in os.walk(folder)
+        for name in names
+    }
+
+
+@pytest.mark.parametrize(
+    ("extra", "difference"),
+    [
+        (["-n", "150"], "n_timesteps: 100 -> 150"),
+        (["-params", "gamma:0.5"], "gamma: 0.9 -> 0.5"),
+        (["--eval-episodes", "2"], "eval_episodes: 1 -> 2"),
+    ],
+)
+def test_a_rerun_with_other_settings_is_refused_naming_the_keys(bench, capsys, extra, difference):
+    folder, args = bench
+    before = snapshot(folder)
+    assert main([*args, "--seeds", "0", "1", *extra]) == 2  # a repeated option: argparse keeps the last
+    err = capsys.readouterr().err
+    assert "2 run(s) on disk were made with other settings than this benchmark asks for" in err
+    for seed in (0, 1):
+        assert f"{folder / 'ddpg' / f'Pendulum-v1_seed{seed}'}: {difference}" in err
+    # Refused before anything ran or was written.
+    assert snapshot(folder) == before
+
+
+def test_a_smaller_grid_keeps_the_rows_of_the_other_runs(bench, capsys):
+    folder, args = bench
+    before = {name: pd.read_csv(folder / name) for name in ("evaluations.csv", "episodes.csv", "final.csv")}
+    assert main([*args, "--seeds", "1"]) == 0
+    assert "seed 1 skipped" in capsys.readouterr().out
+    for name, table in before.items():
+        after = pd.read_csv(folder / name)
+        assert sorted(set(after["seed"])) == [0, 1], name
+        pd.testing.assert_frame_equal(after, table)
+
+
+def test_the_same_settings_pass_the_check_and_runs_on_disk_are_found(bench):
+    folder, _ = bench
+    settings = BenchmarkSettings(
+        algos=["ddpg"],
+        env_ids=["Pendulum-v1"],
+        seeds=[0, 1, 2],
+        log_folder=str(folder),
+        conf_folder=str(folder.parent / "conf"),
+        eval_freq=50,
+        eval_episodes=1,
+        final_eval_episodes=1,
+        device="cuda",  # the device does not change what a run is
+    )
+    check_runs_on_disk(settings)
+    assert [(spec.algo, spec.env_id, spec.seed) for spec in runs_on_disk(str(folder))] == [
+        ("ddpg", "Pendulum-v1", 0),
+        ("ddpg", "Pendulum-v1", 1),
+    ]
+    settings.seeds = [1]
+    settings.overrides = {"gamma": 0.5}
+    with pytest.raises(RunSettingsMismatch) as info:
+        check_runs_on_disk(settings)
+    assert list(info.value.differences) == [str(folder / "ddpg" / "Pendulum-v1_seed1")]

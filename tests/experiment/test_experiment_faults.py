@@ -1,0 +1,189 @@
+"""Fault injection: damage the files of an interrupted run on disk, then resume it; and crashes while writing."""
+
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+from stable_baselines3.common.callbacks import BaseCallback
+
+from sb3_adc import ADC
+from sb3_adc.experiment import RunInterrupted, TrainSettings, resume, train
+from sb3_adc.experiment.callbacks import EvaluationHistory, checkpoint_damage
+from sb3_adc.experiment.layout import DamagedFileError, RunLayout
+
+TINY_ADC = """\
+default:
+  n_timesteps: 300
+  policy: MlpPolicy
+  learning_starts: 50
+  batch_size: 16
+  buffer_size: 1000
+  gamma: 0.9
+  noise_type: normal
+  noise_std: 0.1
+  n_intervals: 4
+  policy_kwargs: "dict(net_arch=[8], value_net_arch=[4])"
+  env_kwargs: {max_episode_steps: 50}
+"""
+
+
+class InterruptAt(BaseCallback):
+    """Raise KeyboardInterrupt (as Ctrl-C) when training reaches a timestep."""
+
+    def __init__(self, at: int):
+        super().__init__()
+        self.at = at
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps == self.at:
+            raise KeyboardInterrupt
+        return True
+
+
+def tiny_settings(folder, **changes) -> TrainSettings:
+    conf = folder / "adc.yml"
+    if not conf.exists():
+        conf.write_text(TINY_ADC)
+    values = dict(
+        algo="adc",
+        env_id="Pendulum-v1",
+        seed=3,
+        conf_file=str(conf),
+        log_folder=str(folder / "logs"),
+        eval_freq=100,
+        eval_episodes=1,
+        save_freq=100,
+        keep_checkpoints=3,
+        final_eval_episodes=1,
+        device="cpu",
+        progress_bar=False,
+    )
+    values.update(changes)
+    return TrainSettings(**values)
+
+
+@pytest.fixture(scope="module")
+def interrupted(tmp_path_factory):
+    """A run interrupted at timestep 250: checkpoints at 100, 200 and 250, evaluations at 100 and 200."""
+    folder = tmp_path_factory.mktemp("interrupted")
+    with pytest.raises(RunInterrupted):
+        train(tiny_settings(folder), callbacks=[InterruptAt(250)])
+    return folder / "logs" / "adc" / "Pendulum-v1_1"
+
+
+@pytest.fixture
+def run_dir(interrupted, tmp_path):
+    """A copy of the interrupted run, to damage."""
+    copy = tmp_path / "run"
+    shutil.copytree(interrupted, copy)
+    return copy
+
+
+def truncate(path, keep=0.5):
+    data = path.read_bytes()
+    path.write_bytes(data[: int(len(data) * keep)])
+
+
+def evaluation_steps(run_dir):
+    return EvaluationHistory.load(str(run_dir / "evaluations.npz")).timesteps
+
+
+def test_the_interrupted_run_is_intact(interrupted):
+    layout = RunLayout(str(interrupted), "Pendulum-v1")
+    assert [checkpoint.timesteps for checkpoint in layout.checkpoints()] == [100, 200, 250]
+    assert all(checkpoint_damage(checkpoint) is None for checkpoint in layout.checkpoints())
+    assert evaluation_steps(interrupted) == [100, 200]
+    assert not list(interrupted.glob("*.partial*"))
+
+
+@pytest.mark.parametrize(
+    ("damaged", "reason"),
+    [
+        # Cut in half, the zip may still open (on the zip torch writes inside it) but lacks the model's members.
+        ("rl_model_250_steps.zip", "rl_model_250_steps.zip "),
+        ("rl_model_replay_buffer_250_steps.pkl", "rl_model_replay_buffer_250_steps.pkl does not unpickle"),
+    ],
+)
+def test_resume_falls_back_to_the_newest_intact_checkpoint(run_dir, capsys, damaged, reason):
+    truncate(run_dir / damaged)
+    result = resume(str(run_dir))
+    out = capsys.readouterr().out
+    assert f"The checkpoint at timestep 250 is damaged ({reason}" in out
+    assert "from timestep 200 of 300" in out
+    assert result.resumed_from == 200
+    # The damaged checkpoint is set aside, not deleted; the run finished from the one before it.
+    assert (run_dir / (damaged + ".damaged")).is_file()
+    assert ADC.load(run_dir / "Pendulum-v1.zip").num_timesteps == 300
+    assert evaluation_steps(run_dir) == [100, 200, 300]
+    episodes = pd.read_csv(run_dir / "0.monitor.csv", skiprows=1)
+    assert list(episodes["total_steps"]) == [50, 100, 150, 200, 250, 300]
+
+
+def test_a_corrupted_member_of_a_checkpoint_zip_is_found(run_dir):
+    # Same length, one flipped byte inside a member: only the CRC check sees it.
+    path = run_dir / "rl_model_250_steps.zip"
+    data = bytearray(path.read_bytes())
+    data[len(data) // 3] ^= 0xFF
+    path.write_bytes(bytes(data))
+    layout = RunLayout(str(run_dir), "Pendulum-v1")
+    damage = checkpoint_damage(layout.checkpoint(250))
+    assert damage is not None
+    assert "rl_model_250_steps.zip" in damage
+    assert checkpoint_damage(layout.checkpoint(200)) is None
+
+
+def test_no_intact_checkpoint_starts_the_run_again(run_dir, capsys):
+    for steps in (100, 200, 250):
+        truncate(run_dir / f"rl_model_{steps}_steps.zip", keep=0.1)
+    result = resume(str(run_dir))
+    assert "No intact checkpoint is left: the run starts again from timestep 0." in capsys.readouterr().out
+    assert result.resumed_from is None
+    assert evaluation_steps(run_dir) == [100, 200, 300]
+
+
+def test_a_damaged_evaluation_history_restarts_after_the_checkpoint(run_dir, capsys):
+    truncate(run_dir / "evaluations.npz")
+    with pytest.raises(DamagedFileError, match=r"evaluations\.npz is damaged"):
+        EvaluationHistory.load(str(run_dir / "evaluations.npz"))
+    resume(str(run_dir))
+    out = capsys.readouterr().out
+    assert "evaluations.npz is damaged" in out
+    assert "the evaluations before timestep 250 are lost" in out
+    assert "from timestep 250 of 300" in out
+    assert evaluation_steps(run_dir) == [300]
+
+
+def test_a_partial_last_monitor_line_is_dropped(run_dir):
+    monitor = run_dir / "0.monitor.csv"
+    with open(monitor, "a", encoding="utf-8", newline="") as stream:
+        stream.write("-123.4,5")  # killed while writing an episode
+    resume(str(run_dir))
+    episodes = pd.read_csv(monitor, skiprows=1)
+    assert not episodes.isna().any().any()
+    assert list(episodes["total_steps"]) == [50, 100, 150, 200, 250, 300]
+    assert -123.4 not in list(episodes["r"])
+
+
+def test_a_crash_while_writing_evaluations_keeps_the_previous_file(tmp_path, monkeypatch):
+    """SB3's EvalCallback writes evaluations.npz in place; a crash in the second write must not damage it."""
+    real_savez = np.savez
+    calls = []
+
+    def crash_on_second_write(file, *args, **kwargs):
+        calls.append(file)
+        if len(calls) == 2:
+            # Half a file where np.savez writes (it adds .npz to a path without it), then the crash.
+            target = file if str(file).endswith(".npz") else f"{file}.npz"
+            with open(target, "wb") as stream:
+                stream.write(b"PK\x03\x04 half a zip")
+            raise OSError("no space left on device")
+        return real_savez(file, *args, **kwargs)
+
+    monkeypatch.setattr(np, "savez", crash_on_second_write)
+    with pytest.raises(OSError, match="no space left"):
+        train(tiny_settings(tmp_path, save_freq=1000))
+    run_dir = tmp_path / "logs" / "adc" / "Pendulum-v1_1"
+    monkeypatch.undo()
+    assert evaluation_steps(run_dir) == [100]
+    assert not list(run_dir.glob("*.partial*"))
