@@ -10,6 +10,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecFrameStack, VecNormalize
 
 from sb3_adc.config import ExperimentConfig
+from sb3_adc.experiment.divergence import FiniteCheck
 
 #: ``info`` key (and monitor CSV column) with the number of steps the environment has taken during training.
 TOTAL_STEPS_KEY = "total_steps"
@@ -107,13 +108,19 @@ def make_vec_env(
 
 def wrap_vec_env(config: ExperimentConfig, venv: VecEnv, training: bool, statistics: str | None = None) -> VecEnv:
     """
-    Wrap ``venv`` in ``VecNormalize`` and then ``VecFrameStack`` if the config asks for them (the RL Zoo's order).
+    Wrap ``venv`` in :class:`~sb3_adc.experiment.divergence.FiniteCheck` (SB3's ``VecCheckNan``: an error at the
+    first NaN or inf), then ``VecNormalize`` and ``VecFrameStack`` if the config asks for them (the RL Zoo's order).
+
+    Every environment of a run goes through here, so training and evaluation environments are wrapped alike,
+    as SB3's ``sync_envs_normalization`` needs.
 
     :param config: The resolved hyperparameters
     :param venv: The environments
     :param training: Whether the statistics are updated and rewards normalized (``False`` for evaluation)
     :param statistics: A saved ``VecNormalize`` to load the statistics from
     """
+    # Inside VecNormalize: a NaN is caught before it spoils the statistics, and named as the environment gave it.
+    venv = FiniteCheck(venv, "training" if training else "evaluation")
     if config.normalize is not None:
         normalized = VecNormalize.load(statistics, venv) if statistics is not None else VecNormalize(venv, **config.normalize)
         if not training:

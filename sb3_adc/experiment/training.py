@@ -24,7 +24,6 @@ from sb3_adc.common.atomic import atomic_path
 from sb3_adc.config import ExperimentConfig, HyperparamsError, load_hyperparams, resolve_entry
 from sb3_adc.experiment.callbacks import CheckpointSaver, EvaluationHistory, PeriodicEvalCallback, checkpoint_damage
 from sb3_adc.experiment.divergence import (
-    FiniteCheck,
     NonFiniteValue,
     NonFiniteWeights,
     TrainingDiverged,
@@ -207,9 +206,6 @@ def _run(
         append_monitor=checkpoint is not None,
         vec_env=settings.vec_env,
     )
-    # Stop at the first NaN or inf, before it reaches the replay buffer or the weights (inside VecNormalize,
-    # whose statistics it would spoil); the evaluation environments are wrapped alike (`_evaluation_env`).
-    train_env = FiniteCheck(train_env, "training")
     statistics = checkpoint.vecnormalize if checkpoint is not None and os.path.isfile(checkpoint.vecnormalize) else None
     train_env = wrap_vec_env(config, train_env, training=True, statistics=statistics)
     model = _load_or_build(settings, config, train_env, checkpoint)
@@ -337,5 +333,5 @@ def _load_or_build(
 
 
 def _evaluation_env(config: ExperimentConfig, settings: TrainSettings, n_envs: int) -> VecEnv:
-    env: VecEnv = FiniteCheck(make_vec_env(config, n_envs, settings.seed + EVAL_SEED_OFFSET), "evaluation")
+    env = make_vec_env(config, n_envs, settings.seed + EVAL_SEED_OFFSET)
     return wrap_vec_env(config, env, training=False)

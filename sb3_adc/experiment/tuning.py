@@ -44,6 +44,7 @@ from stable_baselines3.common.callbacks import EvalCallback
 
 from sb3_adc.config import HyperparamsError, load_hyperparams
 from sb3_adc.config.loader import find_hyperparams_file, packaged_hyperparams_file, read_hyperparams_file, select_entry
+from sb3_adc.experiment.divergence import TrainingDiverged
 from sb3_adc.experiment.envs import make_vec_env, wrap_vec_env
 from sb3_adc.experiment.layout import env_name
 from sb3_adc.experiment.samplers import SAMPLERS, Space
@@ -253,7 +254,11 @@ def _objective(trial: optuna.Trial, settings: TuneSettings, base: dict[str, Any]
             verbose=settings.verbose,
             progress_bar=False,
         )
-        result = train(run_settings, callbacks=[callback])
+        try:
+            result = train(run_settings, callbacks=[callback])
+        except TrainingDiverged as error:
+            # Sampled values that make training diverge (NaN or inf): a bad trial, not an error of the study.
+            raise optuna.TrialPruned(f"seed {seed}: {error}") from None
         if callback.is_pruned:
             raise optuna.TrialPruned(f"pruned at evaluation {callback.n_reports} of seed {seed}")
         returns.append(result.final_evaluation.mean_return)

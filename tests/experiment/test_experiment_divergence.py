@@ -4,6 +4,7 @@ import math
 
 import gymnasium as gym
 import numpy as np
+import optuna
 import pytest
 import torch as th
 from gymnasium import spaces
@@ -14,6 +15,7 @@ from sb3_adc.experiment import TrainSettings, resume, train
 from sb3_adc.experiment.callbacks import CheckpointSaver
 from sb3_adc.experiment.divergence import FiniteCheck, NonFiniteValue, NonFiniteWeights, TrainingDiverged
 from sb3_adc.experiment.layout import RunLayout
+from sb3_adc.experiment.tuning import TuneSettings, tune
 
 ENV_ID = "tests/NonFiniteAt-v0"
 
@@ -147,3 +149,40 @@ def test_a_nan_action_is_named_as_the_policys_output():
     with pytest.raises(NonFiniteValue, match="the model's action holds nan") as info:
         env.step(np.array([[np.nan]], dtype=np.float32))
     assert info.value.source == "action"
+
+
+def tune_settings(tmp_path, **env_kwargs) -> TuneSettings:
+    return TuneSettings(
+        algo="ddpg",
+        env_id=ENV_ID,
+        n_trials=1,
+        n_timesteps=200,
+        seeds=(0,),
+        n_evaluations=2,
+        eval_episodes=1,
+        final_eval_episodes=1,
+        pruner="none",
+        log_folder=str(tmp_path),
+        env_kwargs={"max_episode_steps": 50, **env_kwargs},
+        overrides={"learning_starts": 50, "policy_kwargs": {"net_arch": [4]}, "batch_size": 8, "normalize": True},
+        device="cpu",
+    )
+
+
+def trial_states(settings: TuneSettings) -> list[str]:
+    storage = optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(settings.storage_url()))
+    return [trial.state.name for trial in optuna.load_study(study_name=settings.name, storage=storage).trials]
+
+
+def test_tuning_evaluates_normalized_runs_through_the_nan_check(tmp_path):
+    # The trial's own evaluation environment is wrapped as the training one (SB3 syncs VecNormalize through both).
+    settings = tune_settings(tmp_path)
+    assert tune(settings).n_finished == 1
+    assert trial_states(settings) == ["COMPLETE"]
+
+
+def test_a_diverging_trial_is_pruned_not_an_error_of_the_study(tmp_path):
+    settings = tune_settings(tmp_path, at=130, source="reward")
+    with pytest.raises(RuntimeError, match=r"no trial of study .* completed"):
+        tune(settings)
+    assert trial_states(settings) == ["PRUNED"]
