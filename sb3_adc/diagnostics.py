@@ -388,8 +388,10 @@ class CriticDiagnosticsCallback(BaseCallback):
     def _on_step(self) -> bool:
         record: dict[str, Any] = {}
         if self.n_calls % self.eval_freq == 0:
-            # Evaluate with the training environment's normalisation statistics, as EvalCallback does.
-            sync_envs_normalization(self.training_env, self.eval_env)
+            # Evaluate with the training environment's normalisation statistics, as EvalCallback does (and only
+            # then: other wrappers of the training environment, such as a NaN check, need no match here).
+            if self.model.get_vec_normalize_env() is not None:
+                sync_envs_normalization(self.training_env, self.eval_env)
             record.update(evaluate_critic(self.model, self.eval_env, self.n_eval_episodes, self.truncation_tolerance))
             if self.verbose >= 1:
                 print(

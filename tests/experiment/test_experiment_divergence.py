@@ -186,3 +186,24 @@ def test_a_diverging_trial_is_pruned_not_an_error_of_the_study(tmp_path):
     with pytest.raises(RuntimeError, match=r"no trial of study .* completed"):
         tune(settings)
     assert trial_states(settings) == ["PRUNED"]
+
+
+def test_critic_diagnostics_evaluate_in_a_checked_run(tmp_path):
+    # The diagnostics callback builds a plain evaluation env; it must not be synced against the checked training env.
+    run = settings(tmp_path)
+    run.overrides = {
+        "callback": {
+            "sb3_adc.diagnostics.CriticDiagnosticsCallback": {
+                "eval_env": "Pendulum-v1",
+                "eval_freq": 100,
+                "log_freq": 100,
+                "n_eval_episodes": 1,
+                "save_path": str(tmp_path / "diagnostics"),
+            }
+        }
+    }
+    run.env_id = "Pendulum-v1"
+    run.n_timesteps = 200
+    train(run)
+    history = np.load(tmp_path / "diagnostics" / "critic_diagnostics.npz")
+    assert list(history["timesteps"]) == [100, 200]
