@@ -54,7 +54,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from sb3_adc.cli.common import CommandError
     from sb3_adc.experiment import RunInterrupted
     from sb3_adc.experiment.benchmark import RunSettingsMismatch
-    from sb3_adc.experiment.divergence import TrainingDiverged
+    from sb3_adc.experiment.divergence import NonFiniteValue, TrainingDiverged
 
     args = parser.parse_args(argv)
     try:
@@ -71,7 +71,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except RunInterrupted:
         return 130
-    except TrainingDiverged as error:
+    except (TrainingDiverged, NonFiniteValue) as error:  # NonFiniteValue: outside training (enjoy)
         print(f"sb3-adc {args.command}: error: {error}", file=sys.stderr)
         return 1
 

@@ -207,3 +207,11 @@ def test_critic_diagnostics_evaluate_in_a_checked_run(tmp_path):
     train(run)
     history = np.load(tmp_path / "diagnostics" / "critic_diagnostics.npz")
     assert list(history["timesteps"]) == [100, 200]
+
+
+def test_enjoy_stops_at_a_nan_with_exit_status_1(tmp_path, capsys):
+    result = train(settings(tmp_path, at=10**6))
+    config = tmp_path / "logs" / "adc" / "tests-NonFiniteAt-v0_1" / "tests-NonFiniteAt-v0" / "config.yml"
+    config.write_text(config.read_text().replace("at: 1000000", "at: 20"))
+    assert main(["enjoy", "--run-dir", result.run_dir, "--env", ENV_ID, "-n", "1"]) == 1
+    assert "sb3-adc enjoy: error: the evaluation environment returned nan in its observation" in capsys.readouterr().err
