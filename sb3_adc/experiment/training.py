@@ -20,7 +20,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
 from tqdm import TqdmExperimentalWarning
 
-from sb3_adc.common.atomic import atomic_path
+from sb3_adc.common.atomic import atomic_path, write_atomically
 from sb3_adc.config import ExperimentConfig, HyperparamsError, load_hyperparams, resolve_entry
 from sb3_adc.experiment.callbacks import CheckpointSaver, EvaluationHistory, PeriodicEvalCallback, checkpoint_damage
 from sb3_adc.experiment.divergence import (
@@ -87,8 +87,7 @@ def train(settings: TrainSettings, callbacks: Sequence[BaseCallback] = ()) -> Tr
     if os.path.exists(layout.params_dir):
         raise FileExistsError(f"{run_dir} already holds a run; continue it with resume (sb3-adc train --resume {run_dir}).")
     os.makedirs(layout.params_dir)
-    with open(layout.config, "w", encoding="utf-8") as stream:
-        yaml.safe_dump(config.saved, stream, sort_keys=True)
+    write_atomically(layout.config, lambda stream: yaml.safe_dump(config.saved, stream, sort_keys=True))
     replace(settings, run_dir=run_dir).save(layout.args)
     print(
         f"Training {settings.algo} on {settings.env_id} (seed {settings.seed}, {config.n_timesteps} timesteps, "
@@ -142,8 +141,7 @@ def resume(
             )
         config.n_timesteps = n_timesteps
         config.saved["n_timesteps"] = n_timesteps
-        with open(layout.config, "w", encoding="utf-8") as stream:
-            yaml.safe_dump(config.saved, stream, sort_keys=True)
+        write_atomically(layout.config, lambda stream: yaml.safe_dump(config.saved, stream, sort_keys=True))
     if layout.is_finished():
         finished = FinalEvaluation.load(layout.final_evaluation)
         if finished.timesteps >= config.n_timesteps:
