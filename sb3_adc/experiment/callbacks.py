@@ -111,7 +111,7 @@ class PeriodicEvalCallback(EvalCallback):
             n_eval_episodes=n_eval_episodes,
             eval_freq=1,
             log_path=run_dir,
-            best_model_save_path=run_dir,
+            best_model_save_path=None,  # `EvalCallback` would write best_model.zip in place: `_on_step` saves it
             deterministic=True,
             verbose=verbose,
         )
@@ -119,8 +119,6 @@ class PeriodicEvalCallback(EvalCallback):
         self.next_evaluation = every
         self.evaluations_file = os.path.join(run_dir, "evaluations.npz")
         self.best_model_file = os.path.join(run_dir, "best_model.zip")
-        # `EvalCallback` would write best_model.zip in place: this class saves it (see `_on_step`).
-        self.best_model_save_path = None
         self.evaluations_timesteps = list(history.timesteps)
         self.evaluations_results = list(history.results)
         self.evaluations_length = list(history.ep_lengths)
