@@ -10,12 +10,13 @@ import torch as th
 from stable_baselines3 import DDPG
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
-from stable_baselines3.common.type_aliases import GymEnv, Schedule
+from stable_baselines3.common.save_util import load_from_zip_file
+from stable_baselines3.common.type_aliases import GymEnv, Schedule, TensorDict
 from stable_baselines3.td3.policies import TD3Policy
 
 from sb3_adc.adc.policies import ADCPolicy
 from sb3_adc.common.critic_learning_rate import TD3WithCriticLearningRate
-from sb3_adc.common.model_files import model_file_errors
+from sb3_adc.common.model_files import check_parameter_shapes, model_file_errors
 
 SelfSplitRateDDPG = TypeVar("SelfSplitRateDDPG", bound="SplitRateDDPG")
 
@@ -29,8 +30,8 @@ class SplitRateDDPG(TD3WithCriticLearningRate, DDPG):
     ``critic_learning_rate=None`` (the default) this class is SB3's DDPG, update for update.
 
     Unlike SB3's DDPG, it refuses an :class:`~sb3_adc.adc.policies.ADCPolicy` (SB3's ``DDPG.load`` of an ADC
-    model file silently builds and trains the ADC policy), and its ``load`` errors name the file (see
-    :meth:`sb3_adc.ADC.load`).
+    model file silently builds and trains the ADC policy), and its ``load`` and ``set_parameters`` errors name
+    the file and, for parameters of other shapes, the tensors (see :meth:`sb3_adc.ADC.load`).
 
     :param policy: The policy model to use (MlpPolicy, CnnPolicy, ...)
     :param env: The environment to learn from (if registered in Gym, can be str)
@@ -117,6 +118,30 @@ class SplitRateDDPG(TD3WithCriticLearningRate, DDPG):
                 "(Loading a model file saved by ADC? Load it with sb3_adc.ADC.load.)"
             )
         super()._setup_model()
+
+    def set_parameters(
+        self,
+        load_path_or_dict: str | TensorDict,
+        exact_match: bool = True,
+        device: th.device | str = "auto",
+    ) -> None:
+        """
+        Load parameters from a zip file or a dictionary of state dicts (see SB3's ``set_parameters``), after
+        checking that their tensors have this model's shapes (the same spaces and network sizes). Errors are
+        :class:`~sb3_adc.common.model_files.ModelFileError`, a ``ValueError`` that is also the type SB3 raises (a
+        ``RuntimeError`` for tensors of another shape, where SB3 lets torch's size mismatch through).
+
+        :param load_path_or_dict: Location of the saved data, or a dictionary of state dicts
+        :param exact_match: If True, the given parameters must include every parameter of every module
+        :param device: Device on which the code should run.
+        """
+        if isinstance(load_path_or_dict, dict):
+            params = load_path_or_dict
+        else:
+            with model_file_errors(load_path_or_dict, type(self).__name__):
+                _, params, _ = load_from_zip_file(load_path_or_dict, device=device, load_data=False)
+        check_parameter_shapes(self, params)
+        super().set_parameters(params, exact_match=exact_match, device=device)
 
     @classmethod
     def load(
