@@ -52,14 +52,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     # Imported once the parser exists: the experiment extra is there.
     from sb3_adc.cli.common import CommandError
+    from sb3_adc.common.model_files import ModelFileError
+    from sb3_adc.common.spaces import ActionSpaceError
     from sb3_adc.experiment import RunInterrupted
     from sb3_adc.experiment.benchmark import RunSettingsMismatch
     from sb3_adc.experiment.divergence import NonFiniteValue, TrainingDiverged
+    from sb3_adc.experiment.settings import SettingsError
 
+    user_errors = (
+        HyperparamsError,  # a hyperparameter file, -params or a run's config.yml / args.yml
+        SettingsError,  # an option of the run (--n-eval-envs 0, --device foo, --env-kwargs foo:1, ...)
+        CommandError,
+        ModelFileError,  # a damaged model file, or one of another algorithm (sb3-adc enjoy, -i)
+        ActionSpaceError,  # an environment whose action space the algorithm cannot act in
+        FileNotFoundError,
+        FileExistsError,
+        RunSettingsMismatch,
+    )
     args = parser.parse_args(argv)
     try:
         return int(args.handler(args))
-    except (HyperparamsError, CommandError, FileNotFoundError, FileExistsError, RunSettingsMismatch) as error:
+    except user_errors as error:
         print(f"sb3-adc {args.command}: error: {error}", file=sys.stderr)
         return 2
     except ModuleNotFoundError as error:

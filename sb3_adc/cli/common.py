@@ -9,6 +9,7 @@ import random
 import torch as th
 
 from sb3_adc.config import ALGORITHMS, parse_overrides
+from sb3_adc.experiment.settings import check_device
 
 
 class CommandError(Exception):
@@ -49,14 +50,25 @@ def add_runtime_arguments(parser: argparse.ArgumentParser) -> None:
 
 def apply_runtime_arguments(args: argparse.Namespace) -> None:
     """
-    Set the number of threads and import the ``--gym-packages``.
+    Check ``--device``, set the number of threads and import the ``--gym-packages``.
 
     :param args: The parsed command line
+    :raises SettingsError: for a ``--device`` PyTorch does not know
+    :raises CommandError: for a ``--gym-packages`` module that does not exist
     """
+    check_device(args.device)
     if args.num_threads > 0:
         th.set_num_threads(args.num_threads)
     for module in args.gym_packages:
-        importlib.import_module(module)
+        try:
+            importlib.import_module(module)
+        except ModuleNotFoundError as error:
+            if error.name is None or not (module == error.name or module.startswith(error.name + ".")):
+                raise  # a module the package itself imports (its extra's, reported as such)
+            raise CommandError(
+                f"--gym-packages: no module named {error.name!r}; give importable modules that register Gymnasium "
+                "environments when imported (e.g. sb3_adc_envs)"
+            ) from None
 
 
 def key_values(items: list[str] | None, option: str) -> dict[str, object]:

@@ -3,7 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import dataclasses
+import time
+from collections.abc import Iterator
 
+import stable_baselines3 as sb3
+
+import sb3_adc
 from sb3_adc.cli.common import (
     CommandError,
     add_algo_argument,
@@ -15,6 +22,7 @@ from sb3_adc.cli.common import (
 from sb3_adc.cli.tune_arguments import TUNING_HELP, add_tuning_arguments, run_tuning
 from sb3_adc.config import check_env_id
 from sb3_adc.experiment import TrainSettings, find_run, resume, train
+from sb3_adc.extras import requires_extra
 
 DESCRIPTION = """\
 Train an algorithm on an environment with the hyperparameters of its YAML file (the shipped
@@ -30,6 +38,10 @@ examples:
   sb3-adc train --algo ddpg --env Pendulum-v1 --seed 3 -n 5000 -params learning_rate:0.0005
   sb3-adc train --algo adc --env Pendulum-v1 --resume            # the latest run of adc on Pendulum-v1
   sb3-adc train --resume logs/adc/Pendulum-v1_2 -n 40000         # a given run, with a larger budget
+  sb3-adc train --algo adc --env Pendulum-v1 -tb runs/           # TensorBoard logs in runs/Pendulum-v1/ADC_1
+  sb3-adc train --algo adc --env Pendulum-v1 -n 20000 \
+      -i logs/adc/Pendulum-v1_1/rl_model_20000_steps.zip         # 20000 more steps from a saved model
+  sb3-adc train --algo adc --env Pendulum-v1 --track --wandb-project-name adc  # Weights & Biases (track extra)
 
 """
 
@@ -67,6 +79,29 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--env-kwargs", nargs="+", metavar="KEY:VALUE", help="keyword arguments of gym.make (YAML values)")
     parser.add_argument(
+        "--eval-env-kwargs",
+        nargs="+",
+        metavar="KEY:VALUE",
+        help="keyword arguments of gym.make for the evaluation environments only, replacing those keys of the "
+        "training environments' (YAML values)",
+    )
+    parser.add_argument(
+        "-tb",
+        "--tensorboard-log",
+        default=None,
+        metavar="DIR",
+        help="TensorBoard log folder: the run logs to DIR/ENV/ALGORITHM_N (default: none; with --track, "
+        "LOG_FOLDER/tensorboard)",
+    )
+    parser.add_argument(
+        "-i",
+        "--trained-agent",
+        default=None,
+        metavar="ZIP",
+        help="continue training a saved model of --algo in a new run: its weights and the replay buffer saved with "
+        "it (a checkpoint's, or replay_buffer.pkl beside it), n_timesteps more",
+    )
+    parser.add_argument(
         "--eval-freq", type=int, default=None, help="evaluate every K timesteps (default: 20 evaluations per run; <= 0: never)"
     )
     parser.add_argument("--eval-episodes", type=int, default=5, help="episodes per periodic evaluation (default: 5)")
@@ -89,8 +124,60 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="continue a run from its last checkpoint: RUN_DIR, or (without value) the latest run of --algo on --env",
     )
     add_runtime_arguments(parser)
+    tracking = parser.add_argument_group("tracking (--track, the track extra)")
+    tracking.add_argument(
+        "--track", action="store_true", help="track the run with Weights & Biases (uploads the TensorBoard logs)"
+    )
+    tracking.add_argument("--wandb-project-name", default="sb3-adc", help="Weights & Biases project (default: sb3-adc)")
+    tracking.add_argument(
+        "--wandb-entity", default=None, help="Weights & Biases entity (team) of the project (default: your own)"
+    )
     add_tuning_arguments(parser)
     parser.set_defaults(handler=run)
+
+
+#: Options of a new run (their settings are saved with it): --resume uses the saved ones.
+_NEW_RUN_OPTIONS = {
+    "trained_agent": "-i/--trained-agent",
+    "tensorboard_log": "-tb/--tensorboard-log",
+    "eval_env_kwargs": "--eval-env-kwargs",
+    "track": "--track",
+}
+
+
+def _given(args: argparse.Namespace) -> list[str]:
+    """The options of :data:`_NEW_RUN_OPTIONS` given on the command line."""
+    return [option for name, option in _NEW_RUN_OPTIONS.items() if getattr(args, name)]
+
+
+@contextlib.contextmanager
+def tracking(settings: TrainSettings) -> Iterator[None]:
+    """
+    Track the run with Weights & Biases when ``settings.track`` (as the RL Zoo's ``train.py``: ``wandb.init`` with
+    ``sync_tensorboard``, which uploads what the model logs to TensorBoard).
+
+    :param settings: The run's settings
+    :raises MissingExtraError: when wandb is not installed (the ``track`` extra)
+    """
+    if not settings.track:
+        yield
+        return
+    with requires_extra("track", "--track"):
+        import wandb
+
+    run = wandb.init(
+        name=f"{settings.env_id}__{settings.algo}__{settings.seed}__{int(time.time())}",
+        project=settings.wandb_project_name,
+        entity=settings.wandb_entity,
+        tags=[f"sb3-adc v{sb3_adc.__version__}", f"v{sb3.__version__}"],
+        config=dataclasses.asdict(settings),
+        sync_tensorboard=True,
+        save_code=True,
+    )
+    try:
+        yield
+    finally:
+        run.finish()
 
 
 def run(args: argparse.Namespace) -> int:
@@ -102,16 +189,21 @@ def run(args: argparse.Namespace) -> int:
     """
     apply_runtime_arguments(args)
     if args.optimize:
+        if _given(args):
+            raise CommandError(f"-optimize does not take {', '.join(_given(args))}")
         return run_tuning(args)
     progress_bar = not args.no_progress_bar
     if args.resume is not None:
+        if _given(args):
+            raise CommandError(f"--resume continues a run with its saved settings: it does not take {', '.join(_given(args))}")
         if args.resume == "latest":
             if args.algo is None or args.env is None:
                 raise CommandError("--resume without RUN_DIR needs --algo and --env (the latest run of them is resumed)")
             run_dir = find_run(args.log_folder, args.algo, args.env)
         else:
             run_dir = args.resume
-        resume(run_dir, n_timesteps=args.n_timesteps, progress_bar=progress_bar, verbose=args.verbose)
+        with tracking(TrainSettings.of_run(run_dir)):
+            resume(run_dir, n_timesteps=args.n_timesteps, progress_bar=progress_bar, verbose=args.verbose)
         return 0
     if args.algo is None or args.env is None:
         raise CommandError("--algo and --env are required (or --resume RUN_DIR)")
@@ -136,6 +228,13 @@ def run(args: argparse.Namespace) -> int:
         device=args.device,
         verbose=args.verbose,
         progress_bar=progress_bar,
+        eval_env_kwargs=key_values(args.eval_env_kwargs, "--eval-env-kwargs"),
+        tensorboard_log=args.tensorboard_log,
+        trained_agent=args.trained_agent,
+        track=args.track,
+        wandb_project_name=args.wandb_project_name,
+        wandb_entity=args.wandb_entity,
     )
-    train(settings)
+    with tracking(settings):
+        train(settings)
     return 0

@@ -197,6 +197,29 @@ def find_hyperparams_file(conf_file: str) -> str:
     )
 
 
+def read_yaml_file(path: str) -> Any:
+    """
+    Read a YAML file within the limits of this module (:data:`MAX_FILE_BYTES`, :data:`MAX_DEPTH`,
+    :data:`MAX_ALIASES`, :data:`MAX_EXPANDED_VALUES`) with :func:`load_yaml_bounded`: the hyperparameter files,
+    and the ``config.yml`` and ``args.yml`` of a run.
+
+    :param path: The file (it must exist)
+    :return: The file's content
+    :raises HyperparamsError: if the file is not valid UTF-8 YAML or is over a limit
+    """
+    with open(path, "rb") as stream:
+        data = stream.read(MAX_FILE_BYTES + 1)
+    if len(data) > MAX_FILE_BYTES:
+        raise HyperparamsError(
+            path, None, f"file larger than {MAX_FILE_BYTES} bytes (MAX_FILE_BYTES of sb3_adc.config.loader)"
+        )
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise HyperparamsError(path, None, f"not a UTF-8 text file ({error.reason} at byte {error.start})") from None
+    return load_yaml_bounded(text, path)
+
+
 def read_hyperparams_file(path: str) -> dict[str, Any]:
     """
     Read a hyperparameter file: a YAML mapping of entry names (environment ids, ``default``) to mappings.
@@ -208,17 +231,7 @@ def read_hyperparams_file(path: str) -> dict[str, Any]:
     """
     if not os.path.isfile(path):
         raise HyperparamsError(path, None, "hyperparameter file not found")
-    with open(path, "rb") as stream:
-        data = stream.read(MAX_FILE_BYTES + 1)
-    if len(data) > MAX_FILE_BYTES:
-        raise HyperparamsError(
-            path, None, f"file larger than {MAX_FILE_BYTES} bytes (MAX_FILE_BYTES of sb3_adc.config.loader)"
-        )
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as error:
-        raise HyperparamsError(path, None, f"not a UTF-8 text file ({error.reason} at byte {error.start})") from None
-    content = load_yaml_bounded(text, path)
+    content = read_yaml_file(path)
     if content is None:
         return {}
     if not isinstance(content, dict):

@@ -7,11 +7,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
 from sb3_adc.config import ExperimentConfig, resolve_entry
+from sb3_adc.config.loader import read_yaml_file
 from sb3_adc.experiment.envs import make_vec_env, wrap_vec_env
 from sb3_adc.experiment.layout import RunLayout
 from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings
@@ -41,17 +41,13 @@ def load_run(run_dir: str) -> tuple[TrainSettings, ExperimentConfig, RunLayout]:
 
     :param run_dir: The run's folder
     :raises FileNotFoundError: if the folder holds no run
+    :raises HyperparamsError: if its ``config.yml`` or ``args.yml`` is not YAML or is over a limit of
+        :mod:`sb3_adc.config.loader`, or holds invalid hyperparameters
     """
-    candidates = sorted(os.listdir(run_dir)) if os.path.isdir(run_dir) else []
-    for name in candidates:
-        path = os.path.join(run_dir, name, "args.yml")
-        if os.path.isfile(path):
-            settings = TrainSettings.load(path)
-            layout = RunLayout(run_dir, settings.env_id)
-            with open(layout.config, encoding="utf-8") as stream:
-                config = resolve_entry(settings.algo, settings.env_id, yaml.safe_load(stream), layout.config)
-            return settings, config, layout
-    raise FileNotFoundError(f"{run_dir} holds no sb3-adc run (no */args.yml).")
+    settings = TrainSettings.of_run(run_dir)
+    layout = RunLayout(run_dir, settings.env_id)
+    config = resolve_entry(settings.algo, settings.env_id, read_yaml_file(layout.config), layout.config)
+    return settings, config, layout
 
 
 def model_path(layout: RunLayout, which: str) -> tuple[str, str | None]:

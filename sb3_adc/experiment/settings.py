@@ -3,15 +3,101 @@
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
+import inspect
+import os
 from dataclasses import dataclass, field
 from typing import Any
 
 import yaml
 
+from sb3_adc.config.loader import read_yaml_file
+from sb3_adc.experiment.layout import env_name
+
 #: Evaluations per run when ``eval_freq`` is not given.
 DEFAULT_EVALUATIONS_PER_RUN = 20
 #: Seed offset of the evaluation environments (they never replay the training environments' episodes).
 EVAL_SEED_OFFSET = 10_000
+#: Folder of the TensorBoard logs of tracked runs (``--track`` without ``-tb``), under the log folder.
+TRACKED_TENSORBOARD_FOLDER = "tensorboard"
+#: Keyword arguments of ``gym.make`` itself, accepted for every environment.
+GYM_MAKE_KEYWORDS = ("max_episode_steps", "disable_env_checker")
+
+
+class SettingsError(ValueError):
+    """
+    An invalid run setting. The message names the setting, its ``sb3-adc train`` option and the accepted values;
+    the command exits with status 2 before anything is written.
+
+    :param name: The setting (a field of :class:`TrainSettings`)
+    :param problem: What is wrong and what is accepted
+    :param option: The command-line option (default: ``--`` and the name with dashes)
+    """
+
+    def __init__(self, name: str, problem: str, option: str | None = None):
+        self.name = name
+        self.option = option or "--" + name.replace("_", "-")
+        super().__init__(f"`{name}` {problem} (command-line option {self.option})")
+
+
+def check_device(device: str) -> None:
+    """
+    Check a PyTorch device name: ``auto`` (SB3's choice) or one ``torch.device`` accepts.
+
+    :param device: The name
+    :raises SettingsError: if it is neither
+    """
+    import torch as th
+
+    if device == "auto":
+        return
+    try:
+        th.device(device)
+    except (RuntimeError, TypeError):
+        raise SettingsError(
+            "device", f"must be auto, cpu, cuda, cuda:N or another PyTorch device type (mps, xpu, ...), got {device!r}"
+        ) from None
+
+
+def check_env_kwargs(env_id: str, env_kwargs: dict[str, Any], name: str = "env_kwargs") -> None:
+    """
+    Make the environment once with ``env_kwargs``: a keyword it does not accept (or a value it rejects) is a
+    :class:`SettingsError` naming the keywords it accepts, raised before a run folder is created.
+
+    :param env_id: The environment id (registered)
+    :param env_kwargs: Keyword arguments of ``gym.make``
+    :param name: The setting that gave them (``env_kwargs``, ``eval_env_kwargs``), for the message
+    :raises SettingsError: if ``gym.make`` raises a ``TypeError`` or ``ValueError``
+    """
+    import gymnasium as gym
+
+    try:
+        env = gym.make(env_id, **env_kwargs)
+    except (TypeError, ValueError) as error:
+        raise SettingsError(
+            name, f"rejected by {env_id}: {error}. Keywords it accepts: {', '.join(env_keywords(env_id))}"
+        ) from None
+    env.close()
+
+
+def env_keywords(env_id: str) -> list[str]:
+    """
+    The keyword arguments ``gym.make`` accepts for an environment: those of its entry point, and ``gym.make``'s own.
+
+    :param env_id: The environment id (registered)
+    """
+    import gymnasium as gym
+    from gymnasium.envs.registration import load_env_creator
+
+    spec = gym.spec(env_id)
+    names = list(GYM_MAKE_KEYWORDS)
+    try:
+        creator = spec.entry_point if callable(spec.entry_point) else load_env_creator(str(spec.entry_point))
+        parameters = inspect.signature(creator).parameters.values()
+    except (ValueError, TypeError, ImportError, AttributeError):  # no signature to read: gym.make's own only
+        return names
+    kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+    return [parameter.name for parameter in parameters if parameter.kind in kinds and parameter.name != "self"] + names
 
 
 @dataclass
@@ -38,6 +124,16 @@ class TrainSettings:
     :param device: PyTorch device (``auto``, ``cpu``, ``cuda``)
     :param verbose: SB3 verbosity (0: quiet, 1: training logs)
     :param progress_bar: Whether to show a progress bar
+    :param eval_env_kwargs: Keyword arguments of ``gym.make`` for the evaluation environments only (periodic and
+        final evaluations), replacing those keys of the training environments' ``env_kwargs``
+    :param tensorboard_log: TensorBoard log folder, passed to the model as ``tensorboard_log`` (the RL Zoo's
+        ``-tb``: runs are logged under ``{tensorboard_log}/{env_name}/{AlgorithmClass}_{N}``); ``None``: no
+        TensorBoard logs, or ``{log_folder}/tensorboard`` when tracking
+    :param trained_agent: A saved model (``.zip``) to continue training (the RL Zoo's ``-i``): the run starts
+        from its weights and, when one lies beside it, its replay buffer, and trains ``n_timesteps`` more
+    :param track: Track the run with Weights & Biases (the ``track`` extra), which uploads the TensorBoard logs
+    :param wandb_project_name: The Weights & Biases project of a tracked run
+    :param wandb_entity: The Weights & Biases entity (team) of a tracked run (``None``: the user's default)
     """
 
     algo: str
@@ -59,14 +155,70 @@ class TrainSettings:
     device: str = "auto"
     verbose: int = 0
     progress_bar: bool = True
+    # Added after the first release: args.yml files without them load with these defaults.
+    eval_env_kwargs: dict[str, Any] = field(default_factory=dict)
+    tensorboard_log: str | None = None
+    trained_agent: str | None = None
+    track: bool = False
+    wandb_project_name: str = "sb3-adc"
+    wandb_entity: str | None = None
 
     def __post_init__(self) -> None:
+        """
+        Check the settings (a value of the wrong type or out of range is a :class:`SettingsError`), and resolve
+        the TensorBoard folder of a tracked run.
+        """
         for name in ("eval_episodes", "n_eval_envs", "keep_checkpoints", "final_eval_episodes"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"`{name}` must be an integer >= 1, got {value!r}.")
+                raise SettingsError(name, f"must be an integer >= 1, got {value!r}")
         if self.vec_env not in ("dummy", "subproc"):
-            raise ValueError(f"`vec_env` must be 'dummy' or 'subproc', got {self.vec_env!r}.")
+            raise SettingsError("vec_env", f"must be 'dummy' or 'subproc', got {self.vec_env!r}")
+        if not isinstance(self.device, str):
+            raise SettingsError("device", f"must be a string, got {self.device!r}")
+        check_device(self.device)
+        for name in ("overrides", "env_kwargs", "eval_env_kwargs"):
+            value = getattr(self, name)
+            if not isinstance(value, dict) or not all(isinstance(key, str) for key in value):
+                raise SettingsError(name, f"must be a mapping of names to values, got {value!r}")
+        for name in ("tensorboard_log", "trained_agent", "wandb_entity"):
+            value = getattr(self, name)
+            if value is not None and (not isinstance(value, str) or not value):
+                raise SettingsError(name, f"must be a non-empty string or None, got {value!r}")
+        if not isinstance(self.wandb_project_name, str) or not self.wandb_project_name:
+            raise SettingsError("wandb_project_name", f"must be a non-empty string, got {self.wandb_project_name!r}")
+        if self.track and self.tensorboard_log is None:
+            # Weights & Biases uploads what the model logs to TensorBoard (the RL Zoo logs to runs/ then).
+            self.tensorboard_log = os.path.join(self.log_folder, TRACKED_TENSORBOARD_FOLDER)
+        if self.tensorboard_log is not None and importlib.util.find_spec("tensorboard") is None:
+            raise SettingsError(
+                "tensorboard_log", "needs the tensorboard package, which is not installed: pip install tensorboard"
+            )
+
+    def tensorboard_folder(self) -> str | None:
+        """The model's ``tensorboard_log``: ``{tensorboard_log}/{env_name}``, as the RL Zoo's (``None``: no logs)."""
+        return None if self.tensorboard_log is None else os.path.join(self.tensorboard_log, env_name(self.env_id))
+
+    def evaluation_env_kwargs(self, env_kwargs: dict[str, Any]) -> dict[str, Any]:
+        """
+        The keyword arguments of the evaluation environments: ``env_kwargs`` with :attr:`eval_env_kwargs` applied.
+
+        :param env_kwargs: Those of the training environments (the resolved hyperparameters')
+        """
+        return {**env_kwargs, **self.eval_env_kwargs}
+
+    def check_env_kwargs(self, env_id: str, env_kwargs: dict[str, Any]) -> None:
+        """
+        Make the environment once with the training and the evaluation keyword arguments (see
+        :func:`check_env_kwargs`), before a run folder is created.
+
+        :param env_id: The environment id
+        :param env_kwargs: The training environments' keyword arguments (the resolved hyperparameters')
+        :raises SettingsError: if the environment rejects them
+        """
+        check_env_kwargs(env_id, env_kwargs, "env_kwargs")
+        if self.eval_env_kwargs:
+            check_env_kwargs(env_id, self.evaluation_env_kwargs(env_kwargs), "eval_env_kwargs")
 
     def evaluation_interval(self, n_timesteps: int) -> int:
         """
@@ -100,14 +252,31 @@ class TrainSettings:
     @classmethod
     def load(cls, path: str) -> TrainSettings:
         """
-        Read settings written by :meth:`save`.
+        Read settings written by :meth:`save` (by this version or an earlier one, which lacks the newer settings).
 
         :param path: The file
-        :raises ValueError: if the file does not hold settings
+        :raises ValueError: if the file does not hold settings: a
+            :class:`~sb3_adc.config.errors.HyperparamsError` for a file that is not YAML or is over a limit of
+            :mod:`sb3_adc.config.loader` (size, depth, aliases), a :class:`SettingsError` for an invalid value
         """
-        with open(path, encoding="utf-8") as stream:
-            data = yaml.safe_load(stream)
+        data = read_yaml_file(path)
         names = {item.name for item in dataclasses.fields(cls)}
         if not isinstance(data, dict) or not {"algo", "env_id"} <= set(data) or not set(data) <= names:
             raise ValueError(f"{path} does not hold sb3-adc run settings (expected the keys {', '.join(sorted(names))}).")
         return cls(**data)
+
+    @classmethod
+    def of_run(cls, run_dir: str) -> TrainSettings:
+        """
+        The settings of a run, from its ``{run_dir}/{env_name}/args.yml``.
+
+        :param run_dir: The run's folder
+        :raises FileNotFoundError: if the folder holds no run
+        :raises ValueError: if its ``args.yml`` does not hold settings (see :meth:`load`)
+        """
+        names = sorted(os.listdir(run_dir)) if os.path.isdir(run_dir) else []
+        for name in names:
+            path = os.path.join(run_dir, name, "args.yml")
+            if os.path.isfile(path):
+                return cls.load(path)
+        raise FileNotFoundError(f"{run_dir} holds no sb3-adc run (no */args.yml); start one with sb3-adc train.")

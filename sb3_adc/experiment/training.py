@@ -17,11 +17,16 @@ from typing import Any
 import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.save_util import load_from_zip_file
+from stable_baselines3.common.utils import check_for_correct_spaces
 from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
 from tqdm import TqdmExperimentalWarning
 
 from sb3_adc.common.atomic import atomic_path, write_atomically
+from sb3_adc.common.model_files import model_file_error, model_file_errors
+from sb3_adc.common.spaces import ActionSpaceError
 from sb3_adc.config import ExperimentConfig, HyperparamsError, load_hyperparams, resolve_entry
+from sb3_adc.config.loader import read_yaml_file
 from sb3_adc.experiment.callbacks import CheckpointSaver, EvaluationHistory, PeriodicEvalCallback, checkpoint_damage
 from sb3_adc.experiment.divergence import (
     NonFiniteValue,
@@ -33,7 +38,7 @@ from sb3_adc.experiment.envs import make_vec_env, wrap_vec_env
 from sb3_adc.experiment.evaluation import FinalEvaluation, evaluate_final
 from sb3_adc.experiment.layout import Checkpoint, DamagedFileError, RunLayout, latest_run_dir, new_run_dir
 from sb3_adc.experiment.monitor_files import truncate_monitor
-from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings
+from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, SettingsError, TrainSettings
 
 
 @dataclass
@@ -76,12 +81,17 @@ def train(settings: TrainSettings, callbacks: Sequence[BaseCallback] = ()) -> Tr
     :param callbacks: Callbacks called after the run's own (evaluation, checkpoints), e.g. the pruning callback
         of a tuning trial; not saved with the run
     :raises HyperparamsError: for invalid hyperparameters (before anything is written)
+    :raises SettingsError: for environment keyword arguments the environment rejects, an environment whose
+        action space the algorithm cannot act in, or a ``trained_agent`` of another algorithm or for other spaces
+        (before anything is written)
+    :raises ModelFileError: for a ``trained_agent`` that is not a readable model file (before anything is written)
     :raises RunInterrupted: on Ctrl-C, after saving a checkpoint
     """
     config = load_hyperparams(settings.algo, settings.env_id, settings.conf_file, settings.overrides, settings.n_timesteps)
     if settings.env_kwargs:
         config.env_kwargs.update(settings.env_kwargs)
         config.saved["env_kwargs"] = dict(config.env_kwargs)
+    _check_before_run(settings, config)
     run_dir = settings.run_dir or new_run_dir(settings.log_folder, settings.algo, settings.env_id)
     layout = RunLayout(run_dir, settings.env_id)
     if os.path.exists(layout.params_dir):
@@ -113,13 +123,7 @@ def resume(
     :raises FileNotFoundError: if ``run_dir`` holds no run
     :raises RunInterrupted: on Ctrl-C, after saving a checkpoint
     """
-    settings_files = (
-        [os.path.join(run_dir, name, "args.yml") for name in sorted(os.listdir(run_dir))] if os.path.isdir(run_dir) else []
-    )
-    settings_files = [path for path in settings_files if os.path.isfile(path)]
-    if not settings_files:
-        raise FileNotFoundError(f"{run_dir} holds no sb3-adc run (no */args.yml); start one with sb3-adc train.")
-    settings = TrainSettings.load(settings_files[0])
+    settings = TrainSettings.of_run(run_dir)
     settings = replace(
         settings,
         run_dir=run_dir,
@@ -127,9 +131,7 @@ def resume(
         verbose=settings.verbose if verbose is None else verbose,
     )
     layout = RunLayout(run_dir, settings.env_id)
-    with open(layout.config, encoding="utf-8") as stream:
-        saved = yaml.safe_load(stream)
-    config = resolve_entry(settings.algo, settings.env_id, saved, layout.config)
+    config = resolve_entry(settings.algo, settings.env_id, read_yaml_file(layout.config), layout.config)
     checkpoint = _latest_checkpoint(layout)
     if n_timesteps is not None and n_timesteps != config.n_timesteps:
         reached = checkpoint.timesteps if checkpoint is not None else 0
@@ -204,7 +206,7 @@ def _run(
         append_monitor=checkpoint is not None,
         vec_env=settings.vec_env,
     )
-    statistics = checkpoint.vecnormalize if checkpoint is not None and os.path.isfile(checkpoint.vecnormalize) else None
+    statistics = _statistics_to_load(settings, checkpoint)
     train_env = wrap_vec_env(config, train_env, training=True, statistics=statistics)
     model = _load_or_build(settings, config, train_env, checkpoint)
     eval_env = _evaluation_env(config, settings, settings.n_eval_envs)
@@ -316,12 +318,22 @@ def _load_or_build(
     settings: TrainSettings, config: ExperimentConfig, env: VecEnv, checkpoint: Checkpoint | None
 ) -> BaseAlgorithm:
     algorithm_class: type[Any] = config.algorithm_class
+    tensorboard_log = settings.tensorboard_folder()
+    if checkpoint is None and settings.trained_agent is not None:
+        return _load_trained_agent(settings, config, env)
     if checkpoint is None:
         kwargs = dict(config.model_kwargs)
         if config.noise is not None:
             kwargs["action_noise"] = config.make_action_noise(env.action_space)
-        return algorithm_class(env=env, seed=settings.seed, verbose=settings.verbose, device=settings.device, **kwargs)
-    model = algorithm_class.load(checkpoint.model, env=env, device=settings.device)
+        return algorithm_class(
+            env=env,
+            seed=settings.seed,
+            verbose=settings.verbose,
+            device=settings.device,
+            tensorboard_log=tensorboard_log,
+            **kwargs,
+        )
+    model = algorithm_class.load(checkpoint.model, env=env, device=settings.device, tensorboard_log=tensorboard_log)
     model.verbose = settings.verbose
     if os.path.isfile(checkpoint.replay_buffer) and hasattr(model, "load_replay_buffer"):
         model.load_replay_buffer(checkpoint.replay_buffer)
@@ -331,5 +343,125 @@ def _load_or_build(
 
 
 def _evaluation_env(config: ExperimentConfig, settings: TrainSettings, n_envs: int) -> VecEnv:
-    env = make_vec_env(config, n_envs, settings.seed + EVAL_SEED_OFFSET)
+    env_kwargs = settings.evaluation_env_kwargs(config.env_kwargs)
+    env = make_vec_env(config, n_envs, settings.seed + EVAL_SEED_OFFSET, env_kwargs=env_kwargs)
     return wrap_vec_env(config, env, training=False)
+
+
+def _saved_with(model_path: str, env_id: str) -> tuple[str | None, str | None]:
+    """
+    The replay buffer and ``VecNormalize`` statistics saved with a model (``None`` where absent): a checkpoint's
+    own (``rl_model_{t}_steps.zip``), else the RL Zoo's ``replay_buffer.pkl`` beside the model and
+    ``{env_name}/vecnormalize.pkl``.
+    """
+    layout = RunLayout(os.path.dirname(os.path.abspath(model_path)), env_id)
+    files = (os.path.join(layout.run_dir, "replay_buffer.pkl"), layout.vecnormalize)
+    for checkpoint in layout.checkpoints():
+        if os.path.abspath(checkpoint.model) == os.path.abspath(model_path):
+            files = (checkpoint.replay_buffer, checkpoint.vecnormalize)
+    replay_buffer, statistics = (path if os.path.isfile(path) else None for path in files)
+    return replay_buffer, statistics
+
+
+def _statistics_to_load(settings: TrainSettings, checkpoint: Checkpoint | None) -> str | None:
+    """The ``VecNormalize`` statistics the run starts from: the checkpoint's, or those of the trained agent."""
+    if checkpoint is not None:
+        return checkpoint.vecnormalize if os.path.isfile(checkpoint.vecnormalize) else None
+    if settings.trained_agent is not None:
+        return _saved_with(settings.trained_agent, settings.env_id)[1]
+    return None
+
+
+def _expected_policy_class(config: ExperimentConfig) -> type | None:
+    """The policy class a new model of the run would have (``None`` if the name is not one of the algorithm's)."""
+    policy = config.model_kwargs.get("policy")
+    if isinstance(policy, type):
+        return policy
+    aliases: dict[str, type] = getattr(config.algorithm_class, "policy_aliases", {})
+    return aliases.get(str(policy))
+
+
+def _check_before_run(settings: TrainSettings, config: ExperimentConfig) -> None:
+    """
+    What only the environments tell, checked before the run folder is created: keyword arguments they reject, an
+    action space the algorithm (or its exploration noise) cannot act in, a model to continue (``-i``) of another
+    algorithm or for other spaces.
+    """
+    settings.check_env_kwargs(config.env_id, config.env_kwargs)
+    env = wrap_vec_env(config, make_vec_env(config, 1, settings.seed), training=False)
+    try:
+        try:
+            # The algorithm's own checks of the spaces, without building the networks or the replay buffer.
+            config.algorithm_class(env=env, _init_setup_model=False, **config.model_kwargs)  # type: ignore[call-arg]
+        except ActionSpaceError:
+            raise
+        except AssertionError as error:  # SB3's check of `supported_action_spaces`
+            raise SettingsError("env_id", f"must be an environment {settings.algo} can act in: {error}", "--env") from None
+        try:
+            config.make_action_noise(env.action_space)
+        except ValueError as error:
+            raise HyperparamsError(config.source, "noise_type", str(error)) from None
+        if settings.trained_agent is not None:
+            _check_trained_agent(settings, config, env)
+    finally:
+        env.close()
+
+
+def _check_trained_agent(settings: TrainSettings, config: ExperimentConfig, env: VecEnv) -> None:
+    """
+    Read the model to continue (``-i``) before the run folder is created: a missing or damaged file, a model of
+    another algorithm (another policy class), or one saved for other observation or action spaces than ``env``'s
+    is an error.
+    """
+    path = str(settings.trained_agent)
+    name = config.algorithm_class.__name__
+    if not os.path.isfile(path):
+        raise SettingsError("trained_agent", f"must be a model file saved by {settings.algo}: {path} does not exist")
+    with model_file_errors(path, name):
+        data, _, _ = load_from_zip_file(path, device="cpu", load_data=True)
+    if data is None:
+        raise model_file_error(f"{path} is not a readable {name} model file: it holds no model data")
+    saved, expected = data.get("policy_class"), _expected_policy_class(config)
+    if expected is not None and saved is not expected:
+        saved_name = saved.__name__ if isinstance(saved, type) else repr(saved)
+        raise SettingsError(
+            "trained_agent",
+            f"must be a model of --algo {settings.algo} ({name}, policy {expected.__name__}): {path} holds a model "
+            f"with the policy {saved_name}",
+        )
+    try:
+        check_for_correct_spaces(env, data["observation_space"], data["action_space"])
+    except ValueError as error:
+        raise SettingsError(
+            "trained_agent", f"must be a model for the spaces of {settings.env_id}: {path} is not ({error})"
+        ) from None
+
+
+def _load_trained_agent(settings: TrainSettings, config: ExperimentConfig, env: VecEnv) -> BaseAlgorithm:
+    """
+    The model to continue (``-i``), loaded as the RL Zoo does: its policy and weights, the run's other
+    hyperparameters, and the replay buffer saved with it, if any. Its timestep count starts again at 0: the run
+    trains ``n_timesteps`` more.
+    """
+    path = str(settings.trained_agent)
+    algorithm_class: type[Any] = config.algorithm_class
+    kwargs = {key: value for key, value in config.model_kwargs.items() if key not in ("policy", "policy_kwargs")}
+    if config.noise is not None:
+        kwargs["action_noise"] = config.make_action_noise(env.action_space)
+    print(f"Continuing the training of {path}")
+    with model_file_errors(path, algorithm_class.__name__):
+        model = algorithm_class.load(
+            path,
+            env=env,
+            device=settings.device,
+            seed=settings.seed,
+            verbose=settings.verbose,
+            tensorboard_log=settings.tensorboard_folder(),
+            **kwargs,
+        )
+    replay_buffer, _ = _saved_with(path, settings.env_id)
+    if replay_buffer is not None and hasattr(model, "load_replay_buffer"):
+        print(f"Loading the replay buffer {replay_buffer}")
+        model.load_replay_buffer(replay_buffer)
+    model.num_timesteps = 0
+    return model

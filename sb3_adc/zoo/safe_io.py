@@ -4,7 +4,7 @@ Replacements for the parts of the RL Zoo that execute configuration text.
 The Zoo ``eval``s ``-params`` / ``--env-kwargs`` values (``StoreDict``), reads a run's ``config.yml`` and
 ``args.yml`` with ``yaml.UnsafeLoader`` and ``eval``s string ``normalize`` values, and imports any module an
 ``env_wrapper`` names. The bridge swaps these for the versions below, which go through
-:mod:`sb3_adc.config` (YAML safe loading, the restricted expression parser, the allow-lists).
+:mod:`sb3_adc.config` (bounded safe YAML loading, the restricted expression parser, the allow-lists).
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ from typing import Any
 
 import yaml
 
-from sb3_adc.config import resolve_entry
-from sb3_adc.config.loader import parse_overrides
+from sb3_adc.config import HyperparamsError, resolve_entry
+from sb3_adc.config.loader import MAX_FILE_BYTES, load_yaml_bounded, parse_overrides, read_yaml_file
 
 
 class SafeStoreDict(argparse.Action):
@@ -40,13 +40,25 @@ class SafeStoreDict(argparse.Action):
 
 
 def _safe_load(stream: Any, Loader: Any = None) -> Any:
-    """``yaml.load`` with ``yaml.SafeLoader`` whatever loader is asked for."""
-    return yaml.safe_load(stream)
+    """
+    ``yaml.load`` with ``yaml.safe_load`` semantics whatever loader is asked for, within the limits of
+    :mod:`sb3_adc.config.loader` (size, depth, aliases): an alias bomb is a ``HyperparamsError``.
+    """
+    source = str(getattr(stream, "name", "YAML document"))
+    text = stream if isinstance(stream, (str, bytes)) else stream.read(MAX_FILE_BYTES + 1)
+    if len(text) > MAX_FILE_BYTES:
+        raise HyperparamsError(source, None, f"larger than {MAX_FILE_BYTES} bytes (MAX_FILE_BYTES of sb3_adc.config.loader)")
+    if isinstance(text, bytes):
+        try:
+            text = text.decode("utf-8")
+        except UnicodeDecodeError as error:
+            raise HyperparamsError(source, None, f"not UTF-8 text ({error.reason} at byte {error.start})") from None
+    return load_yaml_bounded(text, source)
 
 
 #: Stands for the ``yaml`` module inside ``rl_zoo3.enjoy``: its ``yaml.load(..., Loader=yaml.UnsafeLoader)``
-#: of ``args.yml`` becomes a safe load.
-SAFE_YAML = SimpleNamespace(load=_safe_load, safe_load=yaml.safe_load, UnsafeLoader=None, SafeLoader=yaml.SafeLoader)
+#: of ``args.yml`` becomes a safe, bounded load.
+SAFE_YAML = SimpleNamespace(load=_safe_load, safe_load=_safe_load, UnsafeLoader=None, SafeLoader=yaml.SafeLoader)
 
 
 def safe_get_saved_hyperparams(
@@ -67,10 +79,9 @@ def safe_get_saved_hyperparams(
     config_path, args_path = os.path.join(stats_path, "config.yml"), os.path.join(stats_path, "args.yml")
     if not (os.path.isfile(config_path) and os.path.isfile(args_path)):
         raise FileNotFoundError(f"{stats_path} lacks config.yml or args.yml: was this run trained with python -m sb3_adc.zoo?")
-    with open(args_path, encoding="utf-8") as stream:
-        args = yaml.safe_load(stream)
-    with open(config_path, encoding="utf-8") as stream:
-        entry = yaml.safe_load(stream)
+    args, entry = read_yaml_file(args_path), read_yaml_file(config_path)
+    if not isinstance(args, dict) or not {"algo", "env"} <= set(args):
+        raise HyperparamsError(args_path, None, "expected the run's arguments (a mapping with `algo` and `env`)")
     config = resolve_entry(args["algo"], args["env"], entry, config_path)
     hyperparams: dict[str, Any] = {"normalize": config.normalize is not None, "env_kwargs": dict(config.env_kwargs)}
     if config.normalize is not None:

@@ -90,9 +90,22 @@ def test_zoo_enjoy_never_executes_a_tampered_config(zoo_run, tmp_path):
     (tampered / "Pendulum-v1" / "args.yml").write_text((zoo_run / "Pendulum-v1" / "args.yml").read_text())
     marker = tmp_path / "pwned"
     (tampered / "Pendulum-v1" / "config.yml").write_text(f"n_timesteps: !!python/object/apply:os.system ['touch {marker}']\n")
-    with pytest.raises(yaml.YAMLError):
+    with pytest.raises(HyperparamsError, match=r"config\.yml: file is not valid YAML \(Python tags are not accepted\)"):
         main(["enjoy", "--algo", "adc", "--env", "Pendulum-v1", "-f", str(tmp_path / "logs"), "--no-render", "-n", "10"])
     assert not marker.exists()
+
+
+def test_zoo_enjoy_stops_an_alias_bomb(zoo_run, tmp_path):
+    run_dir = tmp_path / "logs" / "adc" / "Pendulum-v1_1"
+    (run_dir / "Pendulum-v1").mkdir(parents=True)
+    (run_dir / "Pendulum-v1.zip").write_bytes((zoo_run / "Pendulum-v1.zip").read_bytes())
+    (run_dir / "Pendulum-v1" / "config.yml").write_text((zoo_run / "Pendulum-v1" / "config.yml").read_text())
+    bomb = "a0: &a0 [x, x, x, x, x, x, x, x, x]\n" + "".join(
+        f"a{level}: &a{level} [{', '.join([f'*a{level - 1}'] * 9)}]\n" for level in range(1, 9)
+    )
+    (run_dir / "Pendulum-v1" / "args.yml").write_text(bomb)
+    with pytest.raises(HyperparamsError, match=r"args\.yml: file is over a limit of sb3_adc\.config\.loader"):
+        main(["enjoy", "--algo", "adc", "--env", "Pendulum-v1", "-f", str(tmp_path / "logs"), "--no-render", "-n", "10"])
 
 
 def test_zoo_params_are_parsed_not_evaluated(tmp_path):
