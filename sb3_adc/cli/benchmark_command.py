@@ -22,7 +22,9 @@ or per Ray task (--backend ray), and write three tidy CSVs to the log folder:
   final.csv        one row per run: the final evaluation
 
 Runs live in LOG_FOLDER/ALGO/ENV_seedSEED/. Re-running the same command keeps finished runs (they
-are skipped), resumes interrupted ones from their last checkpoint and starts the rest.
+are skipped), resumes interrupted ones from their last checkpoint and starts the rest. Runs on disk
+trained with other settings (-n, -params, --conf-folder, evaluation) stop the command with exit
+status 2 before anything is trained; the CSVs keep the rows of every finished run in the folder.
 Then: sb3-adc plot --csv LOG_FOLDER/evaluations.csv
 
 examples:

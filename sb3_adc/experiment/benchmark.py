@@ -27,6 +27,7 @@ from typing import Any
 
 import yaml
 
+from sb3_adc.config.loader import read_yaml_file
 from sb3_adc.experiment.layout import DamagedFileError, RunLayout, env_name
 from sb3_adc.experiment.results import (
     EPISODE_COLUMNS,
@@ -196,8 +197,7 @@ def check_runs_on_disk(settings: BenchmarkSettings) -> None:
         layout = RunLayout(spec.run_dir(settings.log_folder), spec.env_id)
         if not os.path.isfile(layout.args) or not os.path.isfile(layout.config):
             continue
-        with open(layout.config, encoding="utf-8") as stream:
-            saved_config = yaml.safe_load(stream)
+        saved_config = read_yaml_file(layout.config)
         asked_config = yaml.safe_load(yaml.safe_dump(config.saved))
         keys = _differences(saved_config if isinstance(saved_config, dict) else {}, asked_config)
         keys += _differences(_compared_settings(TrainSettings.load(layout.args)), _compared_settings(train_settings))

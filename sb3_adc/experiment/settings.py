@@ -11,6 +11,7 @@ from typing import Any
 
 import yaml
 
+from sb3_adc.common.atomic import write_atomically
 from sb3_adc.config.loader import read_yaml_file
 from sb3_adc.experiment.layout import env_name
 
@@ -242,12 +243,12 @@ class TrainSettings:
 
     def save(self, path: str) -> None:
         """
-        Write the settings as YAML.
+        Write the settings as YAML, atomically (a resume reads them).
 
         :param path: The file
         """
-        with open(path, "w", encoding="utf-8") as stream:
-            yaml.safe_dump(dataclasses.asdict(self), stream, sort_keys=True)
+        text = yaml.safe_dump(dataclasses.asdict(self), sort_keys=True)
+        write_atomically(path, lambda stream: stream.write(text))
 
     @classmethod
     def load(cls, path: str) -> TrainSettings:

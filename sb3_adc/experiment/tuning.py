@@ -32,7 +32,7 @@ import socket
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 import optuna
@@ -42,8 +42,15 @@ from optuna.storages.journal import JournalFileBackend
 from optuna.trial import FrozenTrial, TrialState
 from stable_baselines3.common.callbacks import EvalCallback
 
+from sb3_adc.common.atomic import write_atomically
 from sb3_adc.config import HyperparamsError, load_hyperparams
-from sb3_adc.config.loader import find_hyperparams_file, packaged_hyperparams_file, read_hyperparams_file, select_entry
+from sb3_adc.config.loader import (
+    find_hyperparams_file,
+    packaged_hyperparams_file,
+    read_hyperparams_file,
+    read_yaml_file,
+    select_entry,
+)
 from sb3_adc.experiment.divergence import TrainingDiverged
 from sb3_adc.experiment.envs import make_vec_env, wrap_vec_env
 from sb3_adc.experiment.layout import env_name
@@ -402,10 +409,7 @@ def _count(study: optuna.Study, state: TrialState) -> int:
 
 def _write_entry(path: str, env_id: str, entry: Mapping[str, Any], comment: str) -> None:
     text = f"# {comment}\n" + yaml.safe_dump({env_id: dict(entry)}, sort_keys=True)
-    partial = path + ".partial"
-    with open(partial, "w", encoding="utf-8") as stream:
-        stream.write(text)
-    os.replace(partial, path)
+    write_atomically(path, lambda stream: stream.write(text))
 
 
 def _report(settings: TuneSettings, study: optuna.Study) -> TuneResult:
@@ -424,11 +428,13 @@ def _report(settings: TuneSettings, study: optuna.Study) -> TuneResult:
             }
         )
     csv_path = os.path.join(settings.study_dir, "trials.csv")
-    with open(csv_path + ".partial", "w", newline="", encoding="utf-8") as stream:
+
+    def write_csv(stream: IO[Any]) -> None:
         writer = csv.DictWriter(stream, fieldnames=list(rows[0]) if rows else ["number"])
         writer.writeheader()
         writer.writerows(rows)
-    os.replace(csv_path + ".partial", csv_path)
+
+    write_atomically(csv_path, write_csv)
     complete = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
     if not complete:
         raise RuntimeError(f"no trial of study {settings.name} completed; see {csv_path}")
@@ -437,8 +443,7 @@ def _report(settings: TuneSettings, study: optuna.Study) -> TuneResult:
     for row in sorted(rows, key=lambda r: (r["state"] != "COMPLETE", -float(r["value"]) if r["value"] != "" else math.inf)):
         label = "shipped entry" if row["shipped"] else row["params"]
         print(f"{row['number']:>5}  {row['state']:<8} {row['value']!s:>9}  {label}")
-    with open(str(best.user_attrs["hyperparams"]), encoding="utf-8") as stream:
-        best_entry = yaml.safe_load(stream)[settings.env_id]
+    best_entry = read_yaml_file(str(best.user_attrs["hyperparams"]))[settings.env_id]
     best_file = os.path.join(settings.study_dir, "best_hyperparams.yml")
     origin = "the shipped entry" if best.user_attrs.get(_SHIPPED) else f"trial {best.number}"
     _write_entry(

@@ -17,6 +17,7 @@ from rl_zoo3.exp_manager import ExperimentManager
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
+from sb3_adc.common.atomic import write_atomically
 from sb3_adc.config import ExperimentConfig, load_hyperparams, packaged_hyperparams_file, resolve_entry
 from sb3_adc.experiment.samplers import SAMPLERS, Space
 from sb3_adc.experiment.tuning import trial_entry
@@ -113,10 +114,10 @@ class SafeExperimentManager(ExperimentManager):
         return kwargs
 
     def _save_config(self, saved_hyperparams: dict[str, Any]) -> None:
-        with open(os.path.join(self.params_path, "config.yml"), "w", encoding="utf-8") as stream:
-            yaml.safe_dump(dict(self._experiment().saved), stream, sort_keys=True)
-        with open(os.path.join(self.params_path, "args.yml"), "w", encoding="utf-8") as stream:
-            yaml.safe_dump(dict(sorted(vars(self.args).items())), stream)
+        config_text = yaml.safe_dump(dict(self._experiment().saved), sort_keys=True)
+        args_text = yaml.safe_dump(dict(sorted(vars(self.args).items())))
+        write_atomically(os.path.join(self.params_path, "config.yml"), lambda stream: stream.write(config_text))
+        write_atomically(os.path.join(self.params_path, "args.yml"), lambda stream: stream.write(args_text))
         (Path(self.params_path) / "command.txt").write_text(" ".join(getattr(sys, "orig_argv", sys.argv)))
         print(f"Log path: {self.save_path}")
 

@@ -156,6 +156,9 @@ def test_legendre_action_gradient_is_the_derivative_of_the_polynomial():
 
 @pytest.mark.parametrize("design", CRITIC_DESIGNS)
 def test_action_gradient_matches_finite_differences(design):
+    # A fixed initialisation: with weights drawn from whatever RNG state earlier tests left, a ReLU kink can
+    # fall within the float32 finite-difference step of a test point.
+    th.manual_seed(0)
     critic = make_critic(design, n_intervals=10)
     obs, _ = batch(size=4)
     # Points inside intervals, away from their edges and from ReLU kinks, where every design is differentiable.
