@@ -54,6 +54,8 @@ DOCS_STATIC = ROOT.parent / "docs" / "_static" / "benchmarks"
 
 #: The winners of the equal-budget tuning (``benchmarks/fair_tuning.py``), one ``{algo}.yml`` each.
 TUNED = ROOT / "results" / "fair_tuning" / "hyperparams"
+#: The RL Zoo's published Pendulum settings (rl_zoo3 2.9.2), one ``{algo}.yml`` each.
+ZOO = ROOT / "configs" / "rl_zoo"
 
 #: Configuration name -> (algorithm, hyperparameter overrides, folder of ``{algo}.yml`` files: ``None`` for the
 #: shipped ones).
@@ -64,14 +66,15 @@ CONFIGS: dict[str, tuple[str, dict[str, Any], Path | None]] = {
     "adc_legendre": ("adc", {"critic_design": "legendre"}, None),
     "adc_action_network": ("adc", {"critic_design": "action_network", "n_intervals": 16}, None),
     "ddpg": ("ddpg", {}, None),
-    "td3": ("td3", {}, None),
-    "sac": ("sac", {}, None),
+    # The RL Zoo's published Pendulum settings (shipped for the noisy Pendulum too until the equal-budget tuning).
+    "td3": ("td3", {}, ZOO),
+    "sac": ("sac", {}, ZOO),
     "adc_tuned": ("adc", {}, TUNED),
     "ddpg_tuned": ("ddpg", {}, TUNED),
     "td3_tuned": ("td3", {}, TUNED),
     "sac_tuned": ("sac", {}, TUNED),
     # The RL Zoo's published DDPG Pendulum settings: the bar the shipped DDPG entry must clear.
-    "ddpg_zoo": ("ddpg", {}, ROOT / "configs" / "rl_zoo"),
+    "ddpg_zoo": ("ddpg", {}, ZOO),
 }
 
 #: Grid name -> (environments, seeds, default configurations).
