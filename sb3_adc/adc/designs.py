@@ -27,7 +27,9 @@ interval centres (:class:`ActionAdvantageNetwork`).
 
 from __future__ import annotations
 
+import numpy as np
 import torch as th
+from numpy.polynomial import legendre
 from stable_baselines3.common.torch_layers import create_mlp
 from torch import nn
 
@@ -48,6 +50,29 @@ def legendre_basis(x: th.Tensor, degree: int) -> th.Tensor:
     for k in range(1, degree):
         polynomials.append(((2 * k + 1) * x * polynomials[k] - k * polynomials[k - 1]) / (k + 1))
     return th.stack(polynomials[1 : degree + 1], dim=-1)
+
+
+#: Up to this degree the ``"legendre"`` critic evaluates its centred basis from monomials: one power and one
+#: matrix product instead of Bonnet's recursion, whose many small tensor operations (each with scalar operands)
+#: dominate the cost of a small critic. In float32 the monomial form's rounding error grows with the coefficients
+#: of ``P_k`` in the monomial basis (about ``2^k``), so higher degrees keep the recursion.
+MONOMIAL_MAX_DEGREE = 8
+
+
+def legendre_monomial_matrix(degree: int) -> th.Tensor:
+    """
+    The monomial coefficients of ``P_1 .. P_degree`` without their constant terms: ``M[j - 1, k - 1]`` is the
+    coefficient of ``x^j`` in ``P_k``, so ``[x, x^2, .., x^degree] @ M`` is ``legendre_basis(x, degree)`` up to a
+    constant per polynomial (which centring over the interval centres removes).
+
+    :param degree: Highest degree (>= 1)
+    :return: ``(degree, degree)``, float32
+    """
+    matrix = np.zeros((degree, degree))
+    for k in range(1, degree + 1):
+        monomials = legendre.leg2poly(np.eye(degree + 1)[k])  # P_k in the monomial basis, constant first
+        matrix[: len(monomials) - 1, k - 1] = monomials[1:]
+    return th.as_tensor(matrix, dtype=th.float32)
 
 
 def _mlp(input_dim: int, output_dim: int, net_arch: list[int], activation_fn: type[nn.Module]) -> nn.Sequential:
@@ -140,6 +165,9 @@ class LegendreAdvantageNetwork(nn.Module):
     """
 
     basis_at_centres: th.Tensor
+    centred_basis_offset: th.Tensor
+    exponents: th.Tensor
+    monomial_matrix: th.Tensor
 
     def __init__(
         self,
@@ -162,6 +190,28 @@ class LegendreAdvantageNetwork(nn.Module):
         self.coefficient_head = _mlp(trunk_dim, action_dim * basis_degree, advantage_net_arch, activation_fn)
         centres = UniformIntervalPartition(n_intervals).centres
         self.register_buffer("basis_at_centres", legendre_basis(centres, basis_degree).T.contiguous(), persistent=False)
+        # Derived constants, not saved: models saved before them load unchanged.
+        self.monomials = basis_degree <= MONOMIAL_MAX_DEGREE
+        self.register_buffer("exponents", th.arange(1, basis_degree + 1, dtype=th.float32), persistent=False)
+        self.register_buffer("monomial_matrix", legendre_monomial_matrix(basis_degree), persistent=False)
+        self.register_buffer("centred_basis_offset", th.zeros(basis_degree), persistent=False)
+        self.centred_basis_offset = self._basis(centres).mean(dim=0)
+
+    def _basis(self, x: th.Tensor) -> th.Tensor:
+        """The basis at ``x`` ``(*x.shape, basis_degree)``, up to a constant per polynomial (see
+        :data:`MONOMIAL_MAX_DEGREE`)."""
+        if self.monomials:
+            return x.unsqueeze(-1).pow(self.exponents) @ self.monomial_matrix
+        return legendre_basis(x, self.basis_degree)
+
+    def centred_basis(self, actions: th.Tensor) -> th.Tensor:
+        """
+        ``P_k(a_d) - mean_z P_k(centre_z)`` for every action dimension ``d`` and degree ``k``.
+
+        :param actions: Scaled actions ``(batch, action_dim)``, clamped to ``[-1, 1]``
+        :return: ``(batch, action_dim, basis_degree)``
+        """
+        return self._basis(actions.clamp(-1.0, 1.0)) - self.centred_basis_offset
 
     def _heads(self, features: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
         hidden = self.trunk(features)
@@ -188,11 +238,11 @@ class LegendreAdvantageNetwork(nn.Module):
         """``Q(s, a) = V(s) + A(s, a) - mean_z A(s, centre_z)`` (``max`` for Eq. 11). Parameters as in
         :meth:`forward`; ``partition`` and ``interpolation`` are not used. :return: ``(batch, 1)``"""
         value, coefficients = self._heads(features)
-        selected = (coefficients * legendre_basis(actions.clamp(-1.0, 1.0), self.basis_degree)).sum(dim=-1)
         if aggregation == "mean":
-            # The mean over the centres is linear in the coefficients: no need to evaluate every centre.
-            baseline = coefficients @ self.basis_at_centres.mean(dim=1)
-            return value + (selected - baseline).sum(dim=1, keepdim=True)
+            # The mean over the centres is linear in the coefficients: centring the basis once (a constant) gives
+            # A(s, a) - mean_z A(s, centre_z) without evaluating every centre.
+            return value + (coefficients * self.centred_basis(actions)).flatten(1).sum(dim=1, keepdim=True)
+        selected = (coefficients * legendre_basis(actions.clamp(-1.0, 1.0), self.basis_degree)).sum(dim=-1)
         return value + _centre(selected, coefficients @ self.basis_at_centres, aggregation)
 
 

@@ -41,12 +41,12 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[str]:
         raise
 
 
-def write_atomically(path: str | os.PathLike[str], write: Callable[[IO[Any]], None], binary: bool = False) -> None:
+def write_atomically(path: str | os.PathLike[str], write: Callable[[IO[Any]], object], binary: bool = False) -> None:
     """
     Write a file through an open stream, atomically (see :func:`atomic_path`).
 
     :param path: The file to write
-    :param write: Writes the content to the stream it is given
+    :param write: Writes the content to the stream it is given (its return value is ignored)
     :param binary: Open the stream in binary mode (else text, UTF-8, without newline translation)
     """
     with (

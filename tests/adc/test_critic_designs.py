@@ -8,7 +8,7 @@ from numpy.polynomial import legendre
 from stable_baselines3.common.utils import ConstantSchedule
 
 from sb3_adc import ADC
-from sb3_adc.adc.designs import legendre_basis
+from sb3_adc.adc.designs import MONOMIAL_MAX_DEGREE, legendre_basis, legendre_monomial_matrix
 from sb3_adc.adc.policies import CRITIC_DESIGNS, ADCPolicy, validate_critic_options
 from sb3_adc.config import HyperparamsError, resolve_entry
 
@@ -73,15 +73,17 @@ def test_paper_value_stream_depends_on_the_action():
     assert not th.allclose(critic.decompose(obs, actions)[0], critic.decompose(obs, -actions)[0])
 
 
+# Degrees 3 and 8 take the monomial path of the centred basis, 12 Bonnet's recursion (MONOMIAL_MAX_DEGREE).
+@pytest.mark.parametrize("basis_degree", [3, MONOMIAL_MAX_DEGREE, 12])
 @pytest.mark.parametrize("aggregation", ["mean", "max"])
 @pytest.mark.parametrize("action_dim", [1, 2])
-def test_legendre_q_is_value_plus_polynomial_advantage_centred_over_the_interval_centres(action_dim, aggregation):
-    critic = make_critic("legendre", action_dim=action_dim, aggregation=aggregation, basis_degree=3)
+def test_legendre_q_is_value_plus_polynomial_advantage_centred_over_the_centres(action_dim, aggregation, basis_degree):
+    critic = make_critic("legendre", action_dim=action_dim, aggregation=aggregation, basis_degree=basis_degree)
     network = critic.q_networks[0]
     obs, actions = batch(action_dim)
     features = critic.extract_features(obs, critic.features_extractor)
     value, coefficients = network._heads(features)
-    # The reference evaluates the Legendre series with NumPy: sum_k c_k P_k, k = 1..3 (no constant term).
+    # The reference evaluates the Legendre series with NumPy: sum_k c_k P_k, k = 1..degree (no constant term).
     expected = value.detach().numpy().copy()
     grid = centres(10).numpy()
     for d in range(action_dim):
@@ -99,6 +101,16 @@ def test_legendre_q_is_value_plus_polynomial_advantage_centred_over_the_interval
         rtol=1e-5,
         atol=1e-6,
     )
+
+
+@pytest.mark.parametrize("degree", range(1, MONOMIAL_MAX_DEGREE + 1))
+def test_legendre_monomial_matrix_gives_the_legendre_polynomials_without_their_constants(degree):
+    x = np.linspace(-1, 1, 9)
+    powers = x[:, None] ** np.arange(1, degree + 1)
+    basis = powers @ legendre_monomial_matrix(degree).double().numpy()
+    for k in range(1, degree + 1):
+        expected = legendre.legval(x, [0] * k + [1]) - legendre.legval(0.0, [0] * k + [1])
+        np.testing.assert_allclose(basis[:, k - 1], expected, atol=1e-6)
 
 
 def test_legendre_basis_matches_numpy():
