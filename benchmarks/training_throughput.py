@@ -1,11 +1,12 @@
 """
-Training throughput of ADC against SB3's DDPG, measured in the same run.
+Training throughput of ADC, with each critic design, against SB3's DDPG, measured in the same run.
 
 Throughput is environment steps per second of ``learn()`` past the warm-up, one gradient step per environment
-step (``train_freq=1``), so it includes rollout collection, replay sampling and every update. Both algorithms
-get identical layer sizes: the DDPG critic's hidden layers are ADC's shared trunk, on top of which ADC adds its
-value output and its ``n_intervals`` advantage outputs. Runs alternate between the algorithms so that drift of
-the machine's speed affects both alike; the median over repeats is reported.
+step (``train_freq=1``), so it includes rollout collection, replay sampling and every update. Every model gets
+identical layer sizes: the DDPG critic's hidden layers are ADC's shared trunk (``net_arch``), on top of which
+each critic design (:data:`sb3_adc.adc.policies.CRITIC_DESIGNS`) adds its value and advantage outputs. Runs cycle
+through the models in a rotating order so that drift of the machine's speed affects all alike; the median over
+repeats is reported, and each design's ratio to DDPG.
 
 Usage::
 
@@ -37,13 +38,21 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 
 import sb3_adc
 from sb3_adc import ADC
+from sb3_adc.adc.policies import CRITIC_DESIGNS, DEFAULT_CRITIC_DESIGN
 
 RESULTS_DIR = Path(__file__).parent / "results"
+
+#: The timed models: SB3's DDPG, then ADC with each critic design.
+MODELS = ["DDPG", *CRITIC_DESIGNS]
+#: ``"action_network"`` evaluates its advantage network at every interval centre, so its cost grows with
+#: ``n_intervals``; it is timed with the 16 intervals it is used with in the critic study
+#: (``benchmarks/critic_study.py``, configuration ``adc_action_network``).
+ACTION_NETWORK_INTERVALS = 16
 
 
 @dataclass(frozen=True)
 class Setting:
-    """One network size at which both algorithms are timed."""
+    """One network size at which every model is timed."""
 
     name: str
     net_arch: list[int]
@@ -53,12 +62,13 @@ class Setting:
 
 SETTINGS = [
     Setting("SB3 default nets (400-300), batch 256", [400, 300], 256, 100),
+    Setting("256-256 nets, batch 256", [256, 256], 256, 100),
     Setting("shipped Pendulum nets (64-64), batch 256", [64, 64], 256, 100),
     Setting("paper Pendulum nets (30), batch 32", [30], 32, 100),
 ]
 
 
-def make_model(algo: str, setting: Setting, env_id: str, seed: int) -> BaseAlgorithm:
+def make_model(model: str, setting: Setting, env_id: str, seed: int) -> BaseAlgorithm:
     common: dict[str, Any] = dict(
         learning_rate=1e-3,
         buffer_size=100_000,
@@ -72,9 +82,11 @@ def make_model(algo: str, setting: Setting, env_id: str, seed: int) -> BaseAlgor
         device="cpu",
     )
     env = gym.make(env_id)
-    if algo == "DDPG":
+    if model == "DDPG":
         return DDPG("MlpPolicy", env, policy_kwargs=dict(net_arch=setting.net_arch), **common)
-    return ADC("MlpPolicy", env, policy_kwargs=dict(net_arch=setting.net_arch, n_intervals=setting.n_intervals), **common)
+    n_intervals = min(setting.n_intervals, ACTION_NETWORK_INTERVALS) if model == "action_network" else setting.n_intervals
+    policy_kwargs = dict(net_arch=setting.net_arch, n_intervals=n_intervals, critic_design=model)
+    return ADC("MlpPolicy", env, policy_kwargs=policy_kwargs, **common)
 
 
 CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.process_time}
@@ -89,85 +101,106 @@ def time_training(make: Callable[[], BaseAlgorithm], steps: int, warmup: int, cl
     return steps / (clock() - start)
 
 
-def run(env_id: str, steps: int, warmup: int, repeats: int, clock: Callable[[], float]) -> list[dict[str, Any]]:
+def run(
+    env_id: str, steps: int, warmup: int, repeats: int, clock: Callable[[], float], models: list[str], settings: list[Setting]
+) -> list[dict[str, Any]]:
     rows = []
-    for setting in SETTINGS:
-        timings: dict[str, list[float]] = {"DDPG": [], "ADC": []}
+    for setting in settings:
+        timings: dict[str, list[float]] = {model: [] for model in models}
         for repeat in range(repeats):
-            order = ["DDPG", "ADC"] if repeat % 2 == 0 else ["ADC", "DDPG"]
-            for algo in order:
-                speed = time_training(partial(make_model, algo, setting, env_id, repeat), steps, warmup, clock)
-                timings[algo].append(speed)
-                print(f"  {setting.name:<40} {algo:<5} repeat {repeat}: {speed:8.1f} steps/s", flush=True)
-        ddpg, adc = statistics.median(timings["DDPG"]), statistics.median(timings["ADC"])
-        rows.append(
-            dict(
-                setting=setting.name,
-                **asdict(setting),
-                ddpg_steps_per_s=round(ddpg, 1),
-                adc_steps_per_s=round(adc, 1),
-                ratio_adc_over_ddpg=round(adc / ddpg, 3),
-                ddpg_runs=[round(x, 1) for x in timings["DDPG"]],
-                adc_runs=[round(x, 1) for x in timings["ADC"]],
-            )
-        )
+            shift = repeat % len(models)
+            for model in models[shift:] + models[:shift]:
+                speed = time_training(partial(make_model, model, setting, env_id, repeat), steps, warmup, clock)
+                timings[model].append(speed)
+                print(f"  {setting.name:<42} {model:<15} repeat {repeat}: {speed:8.1f} steps/s", flush=True)
+        ddpg = statistics.median(timings["DDPG"])
+        row: dict[str, Any] = dict(setting=setting.name, **asdict(setting))
+        for model in models:
+            median = statistics.median(timings[model])
+            row[f"{model}_steps_per_s"] = round(median, 1)
+            row[f"{model}_runs"] = [round(x, 1) for x in timings[model]]
+            if model != "DDPG":
+                row[f"{model}_over_ddpg"] = round(median / ddpg, 3)
+        rows.append(row)
     return rows
 
 
-def print_table(rows: list[dict[str, Any]]) -> str:
+def _label(model: str) -> str:
+    if model == "DDPG":
+        return "SB3 DDPG"
+    return f"ADC {model}" + (" (default)" if model == DEFAULT_CRITIC_DESIGN else "")
+
+
+def print_table(rows: list[dict[str, Any]], models: list[str]) -> str:
+    designs = [model for model in models if model != "DDPG"]
     lines = [
-        "| setting | DDPG steps/s | ADC steps/s | ADC / DDPG |",
-        "|---|---:|---:|---:|",
+        "| setting | SB3 DDPG steps/s | " + " | ".join(f"{_label(d)} steps/s (/ DDPG)" for d in designs) + " |",
+        "|---|" + "---:|" * (1 + len(designs)),
     ]
-    lines += [
-        f"| {r['setting']} | {r['ddpg_steps_per_s']:.0f} | {r['adc_steps_per_s']:.0f} | {r['ratio_adc_over_ddpg']:.2f} |"
-        for r in rows
-    ]
+    for r in rows:
+        cells = [f"{r[f'{d}_steps_per_s']:.0f} ({r[f'{d}_over_ddpg']:.2f})" for d in designs]
+        lines.append(f"| {r['setting']} | {r['DDPG_steps_per_s']:.0f} | " + " | ".join(cells) + " |")
     table = "\n".join(lines)
     print(table)
     return table
 
 
-def write_csv(rows: list[dict[str, Any]], path: Path) -> None:
+def write_csv(rows: list[dict[str, Any]], models: list[str], path: Path) -> None:
+    designs = [model for model in models if model != "DDPG"]
     with path.open("w", newline="") as file:
         writer = csv.writer(file)
-        writer.writerow(["setting", "DDPG steps/s", "ADC steps/s", "ADC / DDPG"])
+        writer.writerow(["setting", "SB3 DDPG steps/s"] + [f"{_label(d)} steps/s (/ DDPG)" for d in designs])
         for r in rows:
-            ddpg, adc, ratio = r["ddpg_steps_per_s"], r["adc_steps_per_s"], r["ratio_adc_over_ddpg"]
-            writer.writerow([r["setting"], f"{ddpg:.0f}", f"{adc:.0f}", f"{ratio:.2f}"])
+            cells = [f"{r[f'{d}_steps_per_s']:.0f} ({r[f'{d}_over_ddpg']:.2f})" for d in designs]
+            writer.writerow([r["setting"], f"{r['DDPG_steps_per_s']:.0f}", *cells])
 
 
-def plot(rows: list[dict[str, Any]], path: Path) -> None:
-    """Per algorithm and setting: the median throughput (marker), the range over the repeats (whiskers), each repeat (dots)."""
+def plot(rows: list[dict[str, Any]], models: list[str], path: Path) -> None:
+    """Per model and setting: the median throughput (marker), the range over the repeats (whiskers), each repeat (dots)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(9, 3.4))
+    fig, ax = plt.subplots(figsize=(9, 1.5 + 0.28 * len(rows) * len(models)))
     y = np.arange(len(rows))
-    repeats = len(rows[0]["ddpg_runs"])
-    for offset, label, key, color in ((-0.15, "SB3 DDPG", "ddpg", "#666666"), (0.15, "ADC", "adc", "#d95f02")):
-        medians = np.array([r[f"{key}_steps_per_s"] for r in rows])
-        runs = [np.asarray(r[f"{key}_runs"], dtype=float) for r in rows]
+    repeats = len(rows[0]["DDPG_runs"])
+    colors = ["#666666", "#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e"]
+    height = 0.8 / len(models)
+    for index, model in enumerate(models):
+        offset = (index - (len(models) - 1) / 2) * height
+        medians = np.array([r[f"{model}_steps_per_s"] for r in rows])
+        runs = [np.asarray(r[f"{model}_runs"], dtype=float) for r in rows]
         whiskers = np.array([medians - [run.min() for run in runs], [run.max() for run in runs] - medians])
-        ax.errorbar(medians, y + offset, xerr=whiskers, fmt="D", color=color, capsize=4, label=f"{label} (median, min-max)")
+        color = colors[index % len(colors)]
+        ax.errorbar(
+            medians,
+            y + offset,
+            xerr=whiskers,
+            fmt="D",
+            color=color,
+            capsize=3,
+            markersize=4,
+            label=f"{_label(model)} (median, min-max)",
+        )
         for i, run in enumerate(runs):
-            ax.plot(run, np.full(len(run), y[i] + offset), "o", color=color, markersize=3, alpha=0.5)
+            ax.plot(run, np.full(len(run), y[i] + offset), "o", color=color, markersize=2.5, alpha=0.5)
     for i, r in enumerate(rows):
-        top = max(max(r["adc_runs"]), max(r["ddpg_runs"]))
-        ax.text(top * 1.08, i, f"ADC / DDPG = {r['ratio_adc_over_ddpg']:.2f}", va="center", fontsize="small")
+        top = max(max(r[f"{model}_runs"]) for model in models)
+        ratio = r.get(f"{DEFAULT_CRITIC_DESIGN}_over_ddpg")
+        if ratio is not None:
+            ax.text(top * 1.08, i, f"default / DDPG = {ratio:.2f}", va="center", fontsize="small")
     ax.set_yticks(y, [r["setting"] for r in rows])
     ax.set_ylim(-0.6, len(rows) - 0.4)
     # The settings differ ten-fold in speed: a log axis shows each one's spread.
     ax.set_xscale("log")
-    lowest = min(min(min(r["adc_runs"]), min(r["ddpg_runs"])) for r in rows)
-    highest = max(max(max(r["adc_runs"]), max(r["ddpg_runs"])) for r in rows)
-    ax.set_xlim(lowest * 0.8, highest * 2.2)
+    lowest = min(min(r[f"{model}_runs"]) for r in rows for model in models)
+    highest = max(max(r[f"{model}_runs"]) for r in rows for model in models)
+    ax.set_xlim(lowest * 0.8, highest * 4.0)
     ax.set_xlabel("training throughput (env steps/s, one update per step; log scale)")
-    ax.set_title(f"{repeats} repeats per point, alternating algorithms; dots: each repeat", fontsize="small")
+    ax.set_title(f"{repeats} repeats per point, rotating order; dots: each repeat", fontsize="small")
     ax.grid(alpha=0.3, axis="x", which="both")
-    ax.legend(loc="lower right", fontsize="small")
+    ax.legend(loc="upper left", fontsize="x-small")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -176,9 +209,9 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--env", default="Pendulum-v1", help="environment id (default: Pendulum-v1)")
-    parser.add_argument("--steps", type=int, default=3000, help="timed steps per run (default: 3000)")
-    parser.add_argument("--warmup", type=int, default=500, help="untimed steps before timing (default: 500)")
-    parser.add_argument("--repeats", type=int, default=5, help="runs per algorithm and setting (default: 5)")
+    parser.add_argument("--steps", type=int, default=1500, help="timed steps per run (default: 1500)")
+    parser.add_argument("--warmup", type=int, default=300, help="untimed steps before timing (default: 300)")
+    parser.add_argument("--repeats", type=int, default=3, help="runs per model and setting (default: 3)")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default: 1)")
     parser.add_argument(
         "--clock",
@@ -187,15 +220,25 @@ def main() -> None:
         help="wall: elapsed time (default; use an otherwise idle machine); cpu: this process' CPU time, robust to "
         "other load on a shared machine",
     )
+    parser.add_argument(
+        "--designs", nargs="+", choices=CRITIC_DESIGNS, default=list(CRITIC_DESIGNS), help="ADC critic designs (default: all)"
+    )
     parser.add_argument("--quick", action="store_true", help="a short smoke run; writes nothing")
+    parser.add_argument("--replot", action="store_true", help="redraw the figure from the results' JSON, without timing")
     parser.add_argument("--output", type=Path, default=RESULTS_DIR, help="results folder (default: benchmarks/results)")
     args = parser.parse_args()
 
+    if args.replot:
+        saved = json.loads((args.output / "training_throughput.json").read_text())
+        plot(saved["rows"], ["DDPG", *saved["designs"]], args.output / "training_throughput.png")
+        return
     th.set_num_threads(args.threads)
     steps, warmup, repeats = (300, 300, 1) if args.quick else (args.steps, args.warmup, args.repeats)
     print(f"Training throughput on {args.env}: {steps} timed steps after {warmup}, {repeats} repeats, {args.clock} clock")
-    rows = run(args.env, steps, warmup, repeats, CLOCKS[args.clock])
-    table = print_table(rows)
+    models = ["DDPG", *args.designs]
+    settings = SETTINGS[-1:] if args.quick else SETTINGS
+    rows = run(args.env, steps, warmup, repeats, CLOCKS[args.clock], models, settings)
+    table = print_table(rows, models)
     if args.quick:
         return
     args.output.mkdir(parents=True, exist_ok=True)
@@ -207,6 +250,9 @@ def main() -> None:
         repeats=repeats,
         torch_threads=args.threads,
         clock=args.clock,
+        action_network_intervals=ACTION_NETWORK_INTERVALS,
+        designs=args.designs,
+        default_critic_design=DEFAULT_CRITIC_DESIGN,
         machine=dict(
             processor=platform.processor() or platform.machine(), cpu_count=os.cpu_count(), python=platform.python_version()
         ),
@@ -215,8 +261,8 @@ def main() -> None:
     )
     (args.output / "training_throughput.json").write_text(json.dumps(result, indent=2) + "\n")
     (args.output / "training_throughput.md").write_text(table + "\n")
-    write_csv(rows, args.output / "training_throughput.csv")
-    plot(rows, args.output / "training_throughput.png")
+    write_csv(rows, models, args.output / "training_throughput.csv")
+    plot(rows, models, args.output / "training_throughput.png")
     print(f"wrote {args.output}/training_throughput.{{json,md,csv,png}}")
 
 
