@@ -8,9 +8,10 @@ across-seed standard deviation, the area under the evaluation curve (mean evalua
 its IQM and CI), and the probability that the shipped ADC improves on each other configuration (with CI).
 
 Configurations (:data:`CONFIGS`): the shipped ADC entry (its default critic design), the same entry with the
-paper's critic (``critic_design: paper``) and the other designs, and the shipped DDPG, TD3 and SAC entries.
-TD3's and SAC's shipped Pendulum entries are the RL Zoo's. Every run gets the same budget (``--n-timesteps``,
-default 20 000 steps = 100 episodes of 200 steps).
+paper's critic (``critic_design: paper``) and the other designs, the shipped DDPG entry, TD3 and SAC with the
+RL Zoo's Pendulum settings (``benchmarks/configs/rl_zoo/``), and the winners of the equal-budget tuning
+(``*_tuned``, ``benchmarks/fair_tuning.py``). Every run gets the same budget (``--n-timesteps``, default 20 000
+steps = 100 episodes of 200 steps).
 
 The runs go to ``benchmarks/runs/critic_study/`` (not committed); the tables to
 ``benchmarks/results/critic_study/{grid}/`` and the figures to ``docs/_static/benchmarks/critic_study_*.png``.
@@ -18,9 +19,10 @@ The runs go to ``benchmarks/runs/critic_study/`` (not committed); the tables to
 Usage::
 
     python benchmarks/critic_study.py --workers 2                       # the evidence grid, seeds 1000-1009
+    python benchmarks/critic_study.py --grid pendulum --workers 2       # the same on the noise-free Pendulum
     python benchmarks/critic_study.py --grid screen --workers 2         # the design screen on tuning seeds 0-4
     python benchmarks/critic_study.py --grid tuned --workers 2          # the equally tuned algorithms, fresh seeds
-    python benchmarks/critic_study.py --configs adc ddpg --workers 2    # a subset (resumes the rest later)
+    python benchmarks/critic_study.py --configs adc ddpg --workers 2    # a subset (its tables hold only these)
     python benchmarks/critic_study.py --quick                           # a smoke run
 """
 
@@ -81,9 +83,15 @@ CONFIGS: dict[str, tuple[str, dict[str, Any], Path | None]] = {
 GRIDS: dict[str, tuple[list[str], list[int], list[str]]] = {
     # Fresh seeds that no tuning or design choice saw.
     "evidence": (
-        ["sb3_adc/NoisyPendulum-v1", "Pendulum-v1"],
+        ["sb3_adc/NoisyPendulum-v1"],
         list(range(1000, 1010)),
-        ["adc", "adc_paper", "ddpg", "td3", "sac"],
+        ["adc", "adc_paper", "ddpg", "td3"],
+    ),
+    # The same comparison on the noise-free Pendulum, the paper's Figures 4-5 task (fresh seeds too).
+    "pendulum": (
+        ["Pendulum-v1"],
+        list(range(1000, 1010)),
+        ["adc", "ddpg", "td3"],
     ),
     # The design screen, on the tuning seeds.
     "screen": (
@@ -100,7 +108,7 @@ GRIDS: dict[str, tuple[list[str], list[int], list[str]]] = {
 }
 
 #: Grid -> the configuration whose improvement over the others is measured.
-REFERENCES = {"evidence": "adc", "screen": "adc_legendre", "tuned": "adc_tuned"}
+REFERENCES = {"evidence": "adc", "pendulum": "adc", "screen": "adc_legendre", "tuned": "adc_tuned"}
 
 
 def report(outcome: RunOutcome, done: int, total: int) -> None:
