@@ -19,6 +19,9 @@ def read_monitor(path: str) -> pd.DataFrame:
     this package, ``total_steps`` (steps of that environment at the end of the episode). A last line cut short
     (a run killed while writing it) is left out.
 
+    Not SB3's ``load_results``: it reads every monitor file of a folder into one frame, and keeps a line cut
+    short as a row of truncated numbers and missing values instead of dropping it.
+
     :param path: The ``*.monitor.csv`` file
     """
     with open(path, encoding="utf-8", newline="") as stream:
