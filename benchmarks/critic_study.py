@@ -22,6 +22,8 @@ Usage::
     python benchmarks/critic_study.py --grid pendulum --workers 2       # the same on the noise-free Pendulum
     python benchmarks/critic_study.py --grid screen --workers 2         # the design screen on tuning seeds 0-4
     python benchmarks/critic_study.py --grid tuned --workers 2          # the equally tuned algorithms, fresh seeds
+    python benchmarks/critic_study.py --grid warmup --workers 2         # two warm-ups each, tuning seeds 0-4
+    python benchmarks/critic_study.py --grid lidar --workers 2          # the lidar courses, fresh seeds
     python benchmarks/critic_study.py --configs adc ddpg --workers 2    # a subset (its tables hold only these)
     python benchmarks/critic_study.py --quick                           # a smoke run
 """
@@ -77,6 +79,14 @@ CONFIGS: dict[str, tuple[str, dict[str, Any], Path | None]] = {
     "sac_tuned": ("sac", {}, TUNED),
     # The RL Zoo's published DDPG Pendulum settings: the bar the shipped DDPG entry must clear.
     "ddpg_zoo": ("ddpg", {}, ZOO),
+    # The shipped TD3 and SAC entries (the tuning winners on the noisy Pendulum; hand-set on the lidar courses).
+    "td3_shipped": ("td3", {}, None),
+    "sac_shipped": ("sac", {}, None),
+    # The warm-up ablation: every algorithm at the other warm-up of the two that the tuned entries use.
+    "adc_warmup1000": ("adc", {"learning_starts": 1000}, None),
+    "ddpg_warmup1000": ("ddpg", {"learning_starts": 1000}, None),
+    "td3_tuned_warmup5000": ("td3", {"learning_starts": 5000}, TUNED),
+    "sac_tuned_warmup5000": ("sac", {"learning_starts": 5000}, TUNED),
 }
 
 #: Grid name -> (environments, seeds, default configurations).
@@ -105,10 +115,46 @@ GRIDS: dict[str, tuple[list[str], list[int], list[str]]] = {
         list(range(1000, 1010)),
         ["adc_tuned", "ddpg_tuned", "td3_tuned", "sac_tuned", "ddpg_zoo"],
     ),
+    # The warm-up ablation on the tuning seeds, the same two warm-ups (1000 and 5000 steps) for every algorithm:
+    # the tuned ADC and DDPG start updating after 5000 steps, the tuned TD3 and SAC after 1000. Rule, fixed
+    # before the run: an algorithm ships the warm-up with the higher mean area under the curve over seeds 0-4,
+    # unless its mean final return is lower than the other warm-up's by more than 5.
+    "warmup": (
+        ["sb3_adc/NoisyPendulum-v1"],
+        list(range(5)),
+        [
+            "adc_tuned",
+            "adc_warmup1000",
+            "ddpg_tuned",
+            "ddpg_warmup1000",
+            "td3_tuned",
+            "td3_tuned_warmup5000",
+            "sac_tuned",
+            "sac_tuned_warmup5000",
+        ],
+    ),
+    # The paper's navigation task, plain and with noisy observations (Section 5.2), on fresh seeds, with every
+    # algorithm's shipped entry (ADC's pins the paper's critic on these courses; `adc_legendre` is the default).
+    "lidar": (
+        ["sb3_adc/LidarObstacleCourse-v0", "sb3_adc/LidarObstacleCourseNoisy-v0"],
+        list(range(1000, 1010)),
+        ["adc_legendre", "adc", "ddpg", "td3_shipped"],
+    ),
 }
 
+#: Grid -> budget of every run, when it is not ``DEFAULT_BUDGET`` (``None``: each entry's ``n_timesteps``).
+BUDGETS: dict[str, int | None] = {"lidar": None}
+DEFAULT_BUDGET = 20_000
+
 #: Grid -> the configuration whose improvement over the others is measured.
-REFERENCES = {"evidence": "adc", "pendulum": "adc", "screen": "adc_legendre", "tuned": "adc_tuned"}
+REFERENCES = {
+    "evidence": "adc",
+    "pendulum": "adc",
+    "screen": "adc_legendre",
+    "tuned": "adc_tuned",
+    "warmup": "adc_warmup1000",
+    "lidar": "adc_legendre",
+}
 
 
 def report(outcome: RunOutcome, done: int, total: int) -> None:
@@ -118,7 +164,9 @@ def report(outcome: RunOutcome, done: int, total: int) -> None:
         print(outcome.error, flush=True)
 
 
-def run_config(name: str, envs: list[str], seeds: list[int], folder: Path, n_timesteps: int, workers: int) -> dict[str, str]:
+def run_config(
+    name: str, envs: list[str], seeds: list[int], folder: Path, n_timesteps: int | None, workers: int
+) -> dict[str, str]:
     """Train (or resume, or skip when finished) one configuration's grid; return its tables."""
     algo, overrides, conf_folder = CONFIGS[name]
     settings = BenchmarkSettings(
@@ -272,15 +320,22 @@ def main() -> None:
     parser.add_argument("--grid", choices=sorted(GRIDS), default="evidence")
     parser.add_argument("--configs", nargs="+", choices=sorted(CONFIGS), help="configurations (default: the grid's)")
     parser.add_argument("--envs", nargs="+", help="environments (default: the grid's)")
-    parser.add_argument("-n", "--n-timesteps", type=int, default=20_000, help="budget of every run")
+    parser.add_argument(
+        "-n", "--n-timesteps", type=int, help=f"budget of every run (default: the grid's, else {DEFAULT_BUDGET})"
+    )
     parser.add_argument("--workers", type=int, default=1, help="parallel runs")
     parser.add_argument("--reps", type=int, default=5000, help="bootstrap replications")
+    parser.add_argument(
+        "--reference", choices=sorted(CONFIGS), help="configuration whose improvement is measured (default: the grid's)"
+    )
     parser.add_argument("--quick", action="store_true", help="smoke run: 2 seeds, 600 steps, results in *_quick")
     args = parser.parse_args()
     th.set_num_threads(1)
     envs, seeds, default_configs = GRIDS[args.grid]
     envs = args.envs or envs
     configs = args.configs or default_configs
+    if args.n_timesteps is None:
+        args.n_timesteps = BUDGETS.get(args.grid, DEFAULT_BUDGET)
     name = args.grid + ("_quick" if args.quick else "")
     if args.quick:
         seeds, args.n_timesteps, args.reps = seeds[:2], 600, 200
@@ -294,7 +349,7 @@ def main() -> None:
     final.to_csv(output / FINAL_CSV, index=False)
     evaluations.to_csv(output / EVALUATIONS_CSV, index=False)
     merge(tables, EPISODES_CSV).to_csv(output / EPISODES_CSV, index=False)
-    reference = REFERENCES[args.grid]
+    reference = args.reference or REFERENCES[args.grid]
     table = summary(final, evaluations, args.reps, reference)
     table.to_csv(output / "summary.csv", index=False)
     (output / "summary.md").write_text(markdown(table, reference))
@@ -318,6 +373,7 @@ def main() -> None:
             }
             for config in tables
         },
+        "reference": reference,
         "envs": envs,
         "seeds": seeds,
         "n_timesteps": args.n_timesteps,
@@ -332,7 +388,8 @@ def main() -> None:
         "cpu_count": os.cpu_count(),
     }
     metadata_path.write_text(json.dumps(metadata, indent=2) + "\n")
-    print(f"\n{args.grid}: {len(seeds)} seeds x {len(configs)} configurations, {args.n_timesteps} steps per run")
+    budget = "each entry's n_timesteps" if args.n_timesteps is None else f"{args.n_timesteps} steps"
+    print(f"\n{args.grid}: {len(seeds)} seeds x {len(configs)} configurations, {budget} per run")
     print(markdown(table, reference))
 
 
