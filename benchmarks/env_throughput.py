@@ -1,6 +1,7 @@
 """Raw environment throughput: steps per second under random actions, on one CPU core.
 
-Measures every sb3-adc environment next to Gymnasium's ``Pendulum-v1`` in the same run, at two levels:
+Measures every sb3-adc environment next to Gymnasium's ``Pendulum-v1`` in the same run, the lidar course with
+both its robots (the kinematic default and ``robot="wheeled"``, simulated with ``stepSimulation``), at two levels:
 
 - ``core``: the object the registered entry point returns (the environment class itself, or for the noisy
   lidar course the noise wrapper around it), stepped directly;
@@ -37,37 +38,47 @@ import sb3_adc
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
 FIGURE_PATH = Path(__file__).resolve().parent.parent / "docs" / "_static" / "envs" / "env_throughput.png"
 
-#: Environment id -> number of steps per repeat in a full run.
-ENVIRONMENTS = {
-    "Pendulum-v1": 200_000,
-    "sb3_adc/LidarObstacleCourse-v0": 200_000,
-    "sb3_adc/LidarObstacleCourseNoisy-v0": 200_000,
+#: Wheeled robot: make kwargs, and the suffix of its measurements' names.
+WHEELED = {"robot": "wheeled"}
+WHEELED_SUFFIX = " (robot=wheeled)"
+#: Measurement name -> (environment id, make kwargs, number of steps per repeat in a full run).
+ENVIRONMENTS: dict[str, tuple[str, dict[str, Any], int]] = {
+    "Pendulum-v1": ("Pendulum-v1", {}, 200_000),
+    "sb3_adc/LidarObstacleCourse-v0": ("sb3_adc/LidarObstacleCourse-v0", {}, 200_000),
+    "sb3_adc/LidarObstacleCourseNoisy-v0": ("sb3_adc/LidarObstacleCourseNoisy-v0", {}, 200_000),
     # Procedural layouts: a new one is drawn and built at every reset (random steering crashes every few dozen
     # steps, so resets weigh more here than in training).
-    "sb3_adc/LidarObstacleCourse-v1": 50_000,
-    "sb3_adc/LidarObstacleCourseNoisy-v1": 50_000,
-    "sb3_adc/HighwayObstacle-v0": 5_000,
+    "sb3_adc/LidarObstacleCourse-v1": ("sb3_adc/LidarObstacleCourse-v1", {}, 50_000),
+    "sb3_adc/LidarObstacleCourseNoisy-v1": ("sb3_adc/LidarObstacleCourseNoisy-v1", {}, 50_000),
+    # The robot with dynamics: 10 physics steps per environment step.
+    "sb3_adc/LidarObstacleCourse-v0" + WHEELED_SUFFIX: ("sb3_adc/LidarObstacleCourse-v0", WHEELED, 20_000),
+    "sb3_adc/LidarObstacleCourse-v1" + WHEELED_SUFFIX: ("sb3_adc/LidarObstacleCourse-v1", WHEELED, 20_000),
+    "sb3_adc/HighwayObstacle-v0": ("sb3_adc/HighwayObstacle-v0", {}, 5_000),
 }
 LEVELS = ("core", "gym.make")
 #: The kinematic lidar course (``-v0``) must reach this many steps per second behind gym.make's wrappers.
 LIDAR_TARGET_STEPS_PER_S = 20_000
+#: The wheeled robot on ``-v0`` must reach this many steps per second behind gym.make's wrappers.
+WHEELED_TARGET_STEPS_PER_S = 2_000
 
 
-def make_env(env_id: str, level: str) -> gym.Env[Any, Any]:
+def make_env(env_id: str, level: str, kwargs: dict[str, Any] | None = None) -> gym.Env[Any, Any]:
     """
     The environment at one measurement level.
 
     :param env_id: Registered id
     :param level: ``"core"`` (what the entry point returns) or ``"gym.make"`` (with gym.make's default wrappers)
+    :param kwargs: Make kwargs, over the registered ones
     """
+    kwargs = kwargs or {}
     if level == "gym.make":
-        return gym.make(env_id)
+        return gym.make(env_id, **kwargs)
     spec = gym.spec(env_id)
     entry_point = spec.entry_point
     if entry_point is None:
         raise ValueError(f"{env_id} has no entry point")
     creator = load_env_creator(entry_point) if isinstance(entry_point, str) else entry_point
-    return cast(gym.Env[Any, Any], creator(**spec.kwargs))
+    return cast(gym.Env[Any, Any], creator(**{**spec.kwargs, **kwargs}))
 
 
 def time_steps(env: gym.Env[Any, Any], n_steps: int, seed: int) -> tuple[float, int]:
@@ -117,25 +128,28 @@ def run(scale: float, repeats: int) -> list[dict[str, Any]]:
     The repeats go round all the measurements in turn (rather than repeating one measurement back to back), so
     that a burst of load on a shared machine hits every environment alike; each keeps its best repeat.
     """
-    cases = [(env_id, level, max(100, int(steps * scale))) for env_id, steps in ENVIRONMENTS.items() for level in LEVELS]
+    cases = [(name, level, max(100, int(steps * scale))) for name, (_, _, steps) in ENVIRONMENTS.items() for level in LEVELS]
     envs = {}
-    for env_id, level, n_steps in cases:
-        envs[env_id, level] = make_env(env_id, level)
-        time_steps(envs[env_id, level], min(n_steps, 1_000), seed=1)  # warm-up: imports, caches
+    for name, level, n_steps in cases:
+        env_id, kwargs, _ = ENVIRONMENTS[name]
+        envs[name, level] = make_env(env_id, level, kwargs)
+        time_steps(envs[name, level], min(n_steps, 1_000), seed=1)  # warm-up: imports, caches
     best: dict[tuple[str, str], tuple[float, int]] = {}
     for repeat in range(repeats):
-        for env_id, level, n_steps in cases:
-            seconds, resets = time_steps(envs[env_id, level], n_steps, seed=repeat)
-            if (env_id, level) not in best or seconds < best[env_id, level][0]:
-                best[env_id, level] = (seconds, resets)
+        for name, level, n_steps in cases:
+            seconds, resets = time_steps(envs[name, level], n_steps, seed=repeat)
+            if (name, level) not in best or seconds < best[name, level][0]:
+                best[name, level] = (seconds, resets)
         print(f"  repeat {repeat + 1}/{repeats} done", flush=True)
     rows: list[dict[str, Any]] = []
-    for env_id, level, n_steps in cases:
-        envs[env_id, level].close()
-        seconds, resets = best[env_id, level]
+    for name, level, n_steps in cases:
+        envs[name, level].close()
+        seconds, resets = best[name, level]
         rows.append(
             {
-                "env_id": env_id,
+                "environment": name,
+                "env_id": ENVIRONMENTS[name][0],
+                "robot": ENVIRONMENTS[name][1].get("robot", ""),
                 "level": level,
                 "steps": n_steps,
                 "resets": resets,
@@ -144,7 +158,7 @@ def run(scale: float, repeats: int) -> list[dict[str, Any]]:
                 "us_per_step": seconds / n_steps * 1e6,
             }
         )
-    pendulum = {row["level"]: row["steps_per_s"] for row in rows if row["env_id"] == "Pendulum-v1"}
+    pendulum = {row["level"]: row["steps_per_s"] for row in rows if row["environment"] == "Pendulum-v1"}
     for row in rows:
         row["ratio_to_pendulum"] = row["steps_per_s"] / pendulum[row["level"]]
     return rows
@@ -152,12 +166,12 @@ def run(scale: float, repeats: int) -> list[dict[str, Any]]:
 
 def print_table(rows: list[dict[str, Any]]) -> None:
     """Print the results as a table."""
-    header = f"{'environment':<38} {'level':<9} {'steps/s':>10} {'us/step':>8} {'x Pendulum':>10} {'resets':>7}"
+    header = f"{'environment':<55} {'level':<9} {'steps/s':>10} {'us/step':>8} {'x Pendulum':>10} {'resets':>7}"
     print(header)
     print("-" * len(header))
     for row in rows:
         print(
-            f"{row['env_id']:<38} {row['level']:<9} {row['steps_per_s']:>10,.0f} {row['us_per_step']:>8.1f} "
+            f"{row['environment']:<55} {row['level']:<9} {row['steps_per_s']:>10,.0f} {row['us_per_step']:>8.1f} "
             f"{row['ratio_to_pendulum']:>10.2f} {row['resets']:>7}"
         )
 
@@ -171,15 +185,20 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
 
     env_ids = list(ENVIRONMENTS)
     width = 0.38
-    fig, ax = plt.subplots(figsize=(8, 3.8))
+    fig, ax = plt.subplots(figsize=(10, 4.2))
     for offset, level in zip((-width / 2, width / 2), LEVELS, strict=True):
-        values = [next(r["steps_per_s"] for r in rows if r["env_id"] == e and r["level"] == level) for e in env_ids]
+        values = [next(r["steps_per_s"] for r in rows if r["environment"] == e and r["level"] == level) for e in env_ids]
         bars = ax.bar(np.arange(len(env_ids)) + offset, values, width, label=level)
         ax.bar_label(bars, labels=[f"{v:,.0f}" for v in values], fontsize=7)
     ax.axhline(LIDAR_TARGET_STEPS_PER_S, color="tab:red", linestyle="--", linewidth=1, label="lidar course target")
+    ax.axhline(WHEELED_TARGET_STEPS_PER_S, color="tab:purple", linestyle=":", linewidth=1, label="wheeled robot target")
     ax.set_yscale("log")
     ax.set_ylabel("steps / s (one core)")
-    ax.set_xticks(np.arange(len(env_ids)), [e.replace("sb3_adc/", "") for e in env_ids], fontsize=8)
+    labels = [
+        e.replace("sb3_adc/", "").replace("LidarObstacleCourse", "Lidar").replace(WHEELED_SUFFIX, "\nrobot=wheeled")
+        for e in env_ids
+    ]
+    ax.set_xticks(np.arange(len(env_ids)), labels, fontsize=8)
     ax.set_title("Environment throughput under random actions")
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -201,11 +220,19 @@ def main(argv: list[str] | None = None) -> int:
     rows = run(scale=0.01 if args.quick else 1.0, repeats=1 if args.quick else args.repeats)
     print()
     print_table(rows)
-    lidar = next(r for r in rows if r["env_id"] == "sb3_adc/LidarObstacleCourse-v0" and r["level"] == "gym.make")
+    lidar = next(r for r in rows if r["environment"] == "sb3_adc/LidarObstacleCourse-v0" and r["level"] == "gym.make")
     meets_target = lidar["steps_per_s"] >= LIDAR_TARGET_STEPS_PER_S
     print(
         f"\nLidar course, gym.make: {lidar['steps_per_s']:,.0f} steps/s (target {LIDAR_TARGET_STEPS_PER_S:,}): "
         f"{'met' if meets_target else 'NOT met'}"
+    )
+    wheeled = next(
+        r for r in rows if r["environment"] == "sb3_adc/LidarObstacleCourse-v0" + WHEELED_SUFFIX and r["level"] == "gym.make"
+    )
+    wheeled_meets_target = wheeled["steps_per_s"] >= WHEELED_TARGET_STEPS_PER_S
+    print(
+        f"Lidar course with the wheeled robot, gym.make: {wheeled['steps_per_s']:,.0f} steps/s "
+        f"(target {WHEELED_TARGET_STEPS_PER_S:,}): {'met' if wheeled_meets_target else 'NOT met'}"
     )
     if args.quick:
         return 0
@@ -228,6 +255,9 @@ def main(argv: list[str] | None = None) -> int:
         "numpy": np.__version__,
         "lidar_target_steps_per_s": LIDAR_TARGET_STEPS_PER_S,
         "lidar_target_met": meets_target,
+        "wheeled_target_steps_per_s": WHEELED_TARGET_STEPS_PER_S,
+        "wheeled_target_met": wheeled_meets_target,
+        "make_kwargs": {name: kwargs for name, (_, kwargs, _) in ENVIRONMENTS.items() if kwargs},
     }
     (RESULTS_DIR / "env_throughput.json").write_text(json.dumps({"metadata": metadata, "results": rows}, indent=2) + "\n")
     with (RESULTS_DIR / "env_throughput.csv").open("w") as csv:
@@ -239,7 +269,7 @@ def main(argv: list[str] | None = None) -> int:
         table.write("environment,level,steps/s,us/step,x Pendulum-v1\n")
         for row in rows:
             table.write(
-                f"{row['env_id']},{row['level']},{row['steps_per_s']:.0f},{row['us_per_step']:.1f},"
+                f"{row['environment']},{row['level']},{row['steps_per_s']:.0f},{row['us_per_step']:.1f},"
                 f"{row['ratio_to_pendulum']:.2f}\n"
             )
     plot(rows, FIGURE_PATH)

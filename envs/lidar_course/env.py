@@ -15,7 +15,7 @@ from sb3_adc_envs.lidar_course.course import Course, load_course
 from sb3_adc_envs.lidar_course.geometry import LoopProgress
 from sb3_adc_envs.lidar_course.procedural import CourseGenerator
 from sb3_adc_envs.lidar_course.rendering import TopDownRenderer
-from sb3_adc_envs.lidar_course.simulation import CourseSimulation
+from sb3_adc_envs.lidar_course.simulation import ROBOTS, CourseSimulation
 
 #: ``course=PROCEDURAL``: a new procedural layout at every reset (see :mod:`~sb3_adc_envs.lidar_course.procedural`).
 PROCEDURAL = "procedural"
@@ -59,6 +59,15 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
       the distance driven along the course since the reset [m]: along the corridor's centre line (backwards
       counts negative) when the course has one, else the length of the path.
 
+    With ``robot="wheeled"`` the robot has dynamics: a differential-drive
+    :class:`~sb3_adc_envs.lidar_course.wheeled.WheeledRobot` (two motor-driven wheels and two casters under a
+    body of radius ``robot_radius``) that pybullet simulates with ``stepSimulation``. The action becomes a
+    target turn rate (``action[0] * max_steer_deg`` per step) and the forward speed ``speed`` per step; a step
+    sets the wheel motors (``VELOCITY_CONTROL``) and simulates one control period of 0.1 s (10 Hz control, physics
+    at 100 Hz), and the lidar and the contact test start from the body's pose read back from pybullet.
+    Observations, rewards, termination and ``info`` are those of the kinematic robot; ``distance`` without a
+    centre line is the length of the path the body drove. Same seed and same actions give the same trajectory.
+
     With ``course="procedural"`` every reset draws a new layout
     (:class:`~sb3_adc_envs.lidar_course.procedural.CourseGenerator`): its layout seed is drawn uniformly from
     ``layout_seeds`` with the environment's generator, so ``reset(seed=k)`` gives the same layout for the same
@@ -72,8 +81,9 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
     :param fov_deg: Angle the rays are spread over [deg], in ``(0, 360]``
     :param max_range: Length of the rays [m]; observations are distances divided by it
     :param speed: Distance driven per step [m]
-    :param max_steer_deg: Largest change of heading per step [deg] (6 in the paper)
-    :param robot_radius: Radius of the robot [m]
+    :param max_steer_deg: Largest change of heading per step [deg] (6 in the paper); with the wheeled robot,
+        the largest target turn rate, per step
+    :param robot_radius: Radius of the robot [m] (at least 0.08 for the wheeled robot)
     :param start_position_jitter: Start positions are drawn uniformly within this distance of the course's
         start along x and along y [m] (0: always the course's start)
     :param start_heading_jitter_deg: Start headings are drawn uniformly within this angle of the course's
@@ -86,6 +96,8 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         :data:`TRAIN_LAYOUT_SEEDS`; :data:`TEST_LAYOUT_SEEDS` holds out 100 others for evaluation)
     :param generator: The distribution of procedural courses (default
         :class:`~sb3_adc_envs.lidar_course.procedural.CourseGenerator`)
+    :param robot: ``"kinematic"`` (the default, the paper's robot: the pose changes exactly by the action) or
+        ``"wheeled"`` (a robot with dynamics, see above)
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}  # noqa: RUF012 (Gymnasium's class attribute)
@@ -106,6 +118,7 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         render_mode: str | None = None,
         layout_seeds: tuple[int, int] = TRAIN_LAYOUT_SEEDS,
         generator: CourseGenerator | None = None,
+        robot: str = "kinematic",
     ):
         if not isinstance(course, (str, os.PathLike, Course)):
             raise TypeError(
@@ -140,6 +153,8 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
             )
         if generator is not None and not isinstance(generator, CourseGenerator):
             raise TypeError(f"`generator` must be a CourseGenerator or None, got {generator!r}.")
+        if not isinstance(robot, str) or robot not in ROBOTS:
+            raise ValueError(f"`robot` must be one of {ROBOTS}, got {robot!r}.")
 
         self.robot_radius = float(robot_radius)
         #: Whether every reset draws a procedural layout.
@@ -173,12 +188,15 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         self.step_reward = float(step_reward)
         self.collision_reward = float(collision_reward)
         self.render_mode = render_mode
+        #: ``"kinematic"`` or ``"wheeled"``.
+        self.robot = robot
+        self._kinematic = robot == "kinematic"
 
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
         self.observation_space = spaces.Box(0.0, 1.0, shape=(self.n_rays,), dtype=np.float32)
         #: Ray directions relative to the heading [rad].
         self.ray_angles = self._ray_angles(self.n_rays, self.fov)
-        self._simulation = CourseSimulation(self.course, self.robot_radius, self.ray_angles, self.max_range)
+        self._simulation = CourseSimulation(self.course, self.robot_radius, self.ray_angles, self.max_range, robot)
         self._renderer: TopDownRenderer | None = None
         self._progress = self._loop_progress(self.course)
 
@@ -285,6 +303,9 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         """
         Turn by ``action[0] * max_steer_deg`` (clipped to ``[-1, 1]``), drive ``speed`` metres, read the lidar.
 
+        The wheeled robot sets its wheels to that turn and that distance over the control period and simulates
+        it; its pose is what the physics gives.
+
         :param action: ``(1,)`` array in ``[-1, 1]``
         :return: observation, reward (``step_reward``, or ``collision_reward`` on a collision), terminated (a
             collision), truncated (always ``False``: ``gym.make`` adds the 500-step limit) and
@@ -298,13 +319,19 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
             steer = -1.0
         elif steer != steer:  # NaN
             raise ValueError(f"`action` must not be NaN, got {action!r}.")
-        heading = math.remainder(self._heading + steer * self.max_steer, _TWO_PI)
-        x = self._x + self.speed * math.cos(heading)
-        y = self._y + self.speed * math.sin(heading)
-        self._x, self._y, self._heading = x, y, heading
-        collided = self._simulation.move_robot(x, y, heading, self._lidar)
+        if self._kinematic:
+            heading = math.remainder(self._heading + steer * self.max_steer, _TWO_PI)
+            x = self._x + self.speed * math.cos(heading)
+            y = self._y + self.speed * math.sin(heading)
+            self._x, self._y, self._heading = x, y, heading
+            collided = self._simulation.move_robot(x, y, heading, self._lidar)
+            advance = self.speed
+        else:
+            x, y, heading, collided = self._simulation.drive_robot(self.speed, steer * self.max_steer, self._lidar)
+            advance = math.hypot(x - self._x, y - self._y)
+            self._x, self._y, self._heading = x, y, heading
         self._collided = collided
-        self._distance += self._progress.advance(x, y) if self._progress is not None else self.speed
+        self._distance += self._progress.advance(x, y) if self._progress is not None else advance
         self._record_position()
         reward = self.collision_reward if collided else self.step_reward
         return self._lidar.copy(), reward, collided, False, self._info(collided)
