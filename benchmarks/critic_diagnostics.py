@@ -58,7 +58,7 @@ def main() -> None:
     histories: dict[str, list[list[dict]]] = {}
     rows = []
     for name in args.configs:
-        algo, overrides = CONFIGS[name]
+        algo, overrides, conf_folder = CONFIGS[name]
         folder = RUNS_DIR.with_name(RUNS_DIR.name + suffix) / name
         runs = []
         for seed in seeds:
@@ -80,6 +80,7 @@ def main() -> None:
                 log_folder=str(folder),
                 n_timesteps=n_timesteps,
                 overrides={**overrides, "callback": callback},
+                conf_folder=None if conf_folder is None else str(conf_folder),
                 device="cpu",
             )
             result = run_benchmark(settings, workers=args.workers, report=report)

@@ -23,6 +23,7 @@ Usage::
     python benchmarks/critic_study.py --grid screen --workers 2         # the design screen on tuning seeds 0-4
     python benchmarks/critic_study.py --grid tuned --workers 2          # the equally tuned algorithms, fresh seeds
     python benchmarks/critic_study.py --grid warmup --workers 2         # two warm-ups each, tuning seeds 0-4
+    python benchmarks/critic_study.py --grid shipped --workers 2        # the shipped entries after it, fresh seeds
     python benchmarks/critic_study.py --grid lidar --workers 2          # the lidar courses, fresh seeds
     python benchmarks/critic_study.py --configs adc ddpg --workers 2    # a subset (its tables hold only these)
     python benchmarks/critic_study.py --quick                           # a smoke run
@@ -61,15 +62,22 @@ TUNED = ROOT / "results" / "fair_tuning" / "hyperparams"
 #: The RL Zoo's published Pendulum settings (rl_zoo3 2.9.2), one ``{algo}.yml`` each.
 ZOO = ROOT / "configs" / "rl_zoo"
 
+#: ``hyperparams/{adc,ddpg}.yml`` as shipped until the warm-up ablation (``learning_starts: 5000`` on the noisy
+#: Pendulum): the grids run before it train these copies, so their committed results stay reproducible.
+WARMUP5000 = ROOT / "configs" / "warmup5000"
+
 #: Configuration name -> (algorithm, hyperparameter overrides, folder of ``{algo}.yml`` files: ``None`` for the
 #: shipped ones).
 CONFIGS: dict[str, tuple[str, dict[str, Any], Path | None]] = {
-    "adc": ("adc", {}, None),
-    "adc_paper": ("adc", {"critic_design": "paper"}, None),
-    "adc_state_value": ("adc", {"critic_design": "state_value"}, None),
-    "adc_legendre": ("adc", {"critic_design": "legendre"}, None),
-    "adc_action_network": ("adc", {"critic_design": "action_network", "n_intervals": 16}, None),
-    "ddpg": ("ddpg", {}, None),
+    "adc": ("adc", {}, WARMUP5000),
+    "adc_paper": ("adc", {"critic_design": "paper"}, WARMUP5000),
+    "adc_state_value": ("adc", {"critic_design": "state_value"}, WARMUP5000),
+    "adc_legendre": ("adc", {"critic_design": "legendre"}, WARMUP5000),
+    "adc_action_network": ("adc", {"critic_design": "action_network", "n_intervals": 16}, WARMUP5000),
+    "ddpg": ("ddpg", {}, WARMUP5000),
+    # The entries shipped now.
+    "adc_shipped": ("adc", {}, None),
+    "ddpg_shipped": ("ddpg", {}, None),
     # The RL Zoo's published Pendulum settings (shipped for the noisy Pendulum too until the equal-budget tuning).
     "td3": ("td3", {}, ZOO),
     "sac": ("sac", {}, ZOO),
@@ -79,12 +87,11 @@ CONFIGS: dict[str, tuple[str, dict[str, Any], Path | None]] = {
     "sac_tuned": ("sac", {}, TUNED),
     # The RL Zoo's published DDPG Pendulum settings: the bar the shipped DDPG entry must clear.
     "ddpg_zoo": ("ddpg", {}, ZOO),
-    # The shipped TD3 and SAC entries (the tuning winners on the noisy Pendulum; hand-set on the lidar courses).
     "td3_shipped": ("td3", {}, None),
     "sac_shipped": ("sac", {}, None),
     # The warm-up ablation: every algorithm at the other warm-up of the two that the tuned entries use.
-    "adc_warmup1000": ("adc", {"learning_starts": 1000}, None),
-    "ddpg_warmup1000": ("ddpg", {"learning_starts": 1000}, None),
+    "adc_warmup1000": ("adc", {"learning_starts": 1000}, WARMUP5000),
+    "ddpg_warmup1000": ("ddpg", {"learning_starts": 1000}, WARMUP5000),
     "td3_tuned_warmup5000": ("td3", {"learning_starts": 5000}, TUNED),
     "sac_tuned_warmup5000": ("sac", {"learning_starts": 5000}, TUNED),
 }
@@ -133,6 +140,14 @@ GRIDS: dict[str, tuple[list[str], list[int], list[str]]] = {
             "sac_tuned_warmup5000",
         ],
     ),
+    # The entries shipped after the warm-up ablation (ADC and DDPG with its 1000-step warm-up; TD3 and SAC are the
+    # tuned entries, trained as `*_tuned`), beside the tuned ADC and DDPG with their 5000-step warm-up, on fresh
+    # seeds; the runs folder is the tuned grid's, so the runs they share are trained once.
+    "shipped": (
+        ["sb3_adc/NoisyPendulum-v1"],
+        list(range(1000, 1010)),
+        ["adc_shipped", "ddpg_shipped", "td3_tuned", "sac_tuned", "adc_tuned", "ddpg_tuned"],
+    ),
     # The paper's navigation task, plain and with noisy observations (Section 5.2), on fresh seeds, with every
     # algorithm's shipped entry (ADC's pins the paper's critic on these courses; `adc_legendre` is the default).
     "lidar": (
@@ -141,6 +156,9 @@ GRIDS: dict[str, tuple[list[str], list[int], list[str]]] = {
         ["adc_legendre", "adc", "ddpg", "td3_shipped"],
     ),
 }
+
+#: Grid -> the grid whose runs folder it shares (a finished run is then trained once for both).
+SHARED_RUNS = {"shipped": "tuned"}
 
 #: Grid -> budget of every run, when it is not ``DEFAULT_BUDGET`` (``None``: each entry's ``n_timesteps``).
 BUDGETS: dict[str, int | None] = {"lidar": None}
@@ -153,6 +171,7 @@ REFERENCES = {
     "screen": "adc_legendre",
     "tuned": "adc_tuned",
     "warmup": "adc_warmup1000",
+    "shipped": "adc_shipped",
     "lidar": "adc_legendre",
 }
 
@@ -339,7 +358,7 @@ def main() -> None:
     name = args.grid + ("_quick" if args.quick else "")
     if args.quick:
         seeds, args.n_timesteps, args.reps = seeds[:2], 600, 200
-    folder = RUNS_DIR / name
+    folder = RUNS_DIR / (SHARED_RUNS.get(args.grid, args.grid) + ("_quick" if args.quick else ""))
     output = RESULTS_DIR / name
     output.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()

@@ -3,10 +3,11 @@ Fair tuning: ADC, DDPG, TD3 and SAC tuned with the same Optuna budget on the tun
 
 Each algorithm gets one study of ``sb3-adc train -optimize`` (:func:`sb3_adc.experiment.tuning.tune`) with the
 same number of finished trials, the same seeds, budget, evaluation, sampler and pruner. The first trial of every
-study is the algorithm's starting entry: the shipped one for ADC and DDPG, the RL Zoo's Pendulum settings for TD3
-and SAC (``benchmarks/configs/rl_zoo/``: what sb3-adc shipped for them before this tuning, whose winners it ships
-now), so no tuned entry is worse than its starting point on the tuning seeds. ADC's space also covers its own
-knobs (critic design, ``n_intervals``, Legendre degree), and ADC and DDPG share the critic-rate ratio and the
+study is the algorithm's starting entry: for ADC and DDPG the one shipped when the tuning ran
+(``benchmarks/configs/warmup5000/``), for TD3 and SAC the RL Zoo's Pendulum settings
+(``benchmarks/configs/rl_zoo/``: what sb3-adc shipped for them before this tuning, whose winners it ships now),
+so no tuned entry is worse than its starting point on the tuning seeds. ADC's space also covers its own knobs
+(critic design, ``n_intervals``, Legendre degree), and ADC and DDPG share the critic-rate ratio and the
 epsilon-gated exploration schedule (:mod:`sb3_adc.experiment.samplers`).
 
 The studies go to ``benchmarks/runs/fair_tuning/`` (not committed; re-running the command resumes them). The
@@ -46,9 +47,13 @@ ALGOS = ["adc", "ddpg", "td3", "sac"]
 ENV_ID = "sb3_adc/NoisyPendulum-v1"
 #: Tuning seeds: the evidence grid uses 1000-1009, which no trial sees.
 SEEDS = (0, 1)
-#: Algorithm -> the file of its starting entry (absent: the shipped ``hyperparams/{algo}.yml``). TD3 and SAC start
-#: from the RL Zoo's settings, which were their shipped entries until the winners of this tuning replaced them.
-STARTING_POINTS = {algo: str(ROOT / "configs" / "rl_zoo" / f"{algo}.yml") for algo in ("td3", "sac")}
+#: Algorithm -> the file of its starting entry. TD3 and SAC start from the RL Zoo's settings, which were their
+#: shipped entries until the winners of this tuning replaced them; ADC and DDPG from their entries as shipped
+#: when this tuning ran (``configs/warmup5000``; the warm-up ablation of ``critic_study.py`` changed them since).
+STARTING_POINTS = {
+    **{algo: str(ROOT / "configs" / "rl_zoo" / f"{algo}.yml") for algo in ("td3", "sac")},
+    **{algo: str(ROOT / "configs" / "warmup5000" / f"{algo}.yml") for algo in ("adc", "ddpg")},
+}
 
 
 def main() -> None:
