@@ -25,6 +25,9 @@ Usage::
     python benchmarks/critic_study.py --grid warmup --workers 2         # two warm-ups each, tuning seeds 0-4
     python benchmarks/critic_study.py --grid shipped --workers 2        # the shipped entries after it, fresh seeds
     python benchmarks/critic_study.py --grid lidar --workers 2          # the lidar courses, fresh seeds
+    python benchmarks/critic_study.py --grid lidar_plain --workers 2    # the plain lidar course alone
+    python benchmarks/critic_study.py --grid wallclock --workers 2      # the shipped entries against wall-clock time
+    python benchmarks/critic_study.py --grid recipe --workers 2         # ADC's critic in TD3's recipe, seeds 0-4
     python benchmarks/critic_study.py --configs adc ddpg --workers 2    # a subset (its tables hold only these)
     python benchmarks/critic_study.py --quick                           # a smoke run
 """
@@ -66,6 +69,9 @@ ZOO = ROOT / "configs" / "rl_zoo"
 #: Pendulum): the grids run before it train these copies, so their committed results stay reproducible.
 WARMUP5000 = ROOT / "configs" / "warmup5000"
 
+#: ADC with TD3's tuned entry and TD3's additions (twin critics, target smoothing, delayed actor updates).
+TD3_RECIPE = ROOT / "configs" / "td3_recipe"
+
 #: Configuration name -> (algorithm, hyperparameter overrides, folder of ``{algo}.yml`` files: ``None`` for the
 #: shipped ones).
 CONFIGS: dict[str, tuple[str, dict[str, Any], Path | None]] = {
@@ -94,6 +100,8 @@ CONFIGS: dict[str, tuple[str, dict[str, Any], Path | None]] = {
     "ddpg_warmup1000": ("ddpg", {"learning_starts": 1000}, WARMUP5000),
     "td3_tuned_warmup5000": ("td3", {"learning_starts": 5000}, TUNED),
     "sac_tuned_warmup5000": ("sac", {"learning_starts": 5000}, TUNED),
+    # ADC's dueling critic inside TD3's tuned recipe.
+    "adc_td3_recipe": ("adc", {}, TD3_RECIPE),
 }
 
 #: Grid name -> (environments, seeds, default configurations).
@@ -155,13 +163,37 @@ GRIDS: dict[str, tuple[list[str], list[int], list[str]]] = {
         list(range(1000, 1010)),
         ["adc_legendre", "adc", "ddpg", "td3_shipped"],
     ),
+    # The plain course of the lidar grid on its own (that grid's first invocation finished the noisy course and 2 of
+    # the plain course's 40 runs); the runs folder is the lidar grid's.
+    "lidar_plain": (
+        ["sb3_adc/LidarObstacleCourse-v0"],
+        list(range(1000, 1010)),
+        ["adc_legendre", "adc", "ddpg", "td3_shipped"],
+    ),
+    # Does ADC's dueling critic add to TD3's recipe? ADC's default critic with the tuned TD3 entry and TD3's
+    # additions, against the tuned TD3, on the tuning seeds. Rule, fixed before the run: it goes on to fresh seeds
+    # if its mean area under the curve over seeds 0-4 is at least TD3's and its mean final return is not lower
+    # than TD3's by more than 5 (the warm-up rule).
+    "recipe": (
+        ["sb3_adc/NoisyPendulum-v1"],
+        list(range(5)),
+        ["adc_td3_recipe", "td3_tuned"],
+    ),
+    # The shipped entries of the noisy Pendulum again, now that the tables hold each episode's wall-clock time:
+    # learning curves against seconds of training, the cost side of the default critic (the runs folder is the
+    # tuned grid's, so on a machine that kept the shipped grid's runs nothing is retrained).
+    "wallclock": (
+        ["sb3_adc/NoisyPendulum-v1"],
+        list(range(1000, 1010)),
+        ["adc_shipped", "ddpg_shipped", "td3_tuned", "sac_tuned"],
+    ),
 }
 
 #: Grid -> the grid whose runs folder it shares (a finished run is then trained once for both).
-SHARED_RUNS = {"shipped": "tuned"}
+SHARED_RUNS = {"shipped": "tuned", "lidar_plain": "lidar", "wallclock": "tuned", "recipe": "warmup"}
 
 #: Grid -> budget of every run, when it is not ``DEFAULT_BUDGET`` (``None``: each entry's ``n_timesteps``).
-BUDGETS: dict[str, int | None] = {"lidar": None}
+BUDGETS: dict[str, int | None] = {"lidar": None, "lidar_plain": None}
 DEFAULT_BUDGET = 20_000
 
 #: Grid -> the configuration whose improvement over the others is measured.
@@ -173,6 +205,9 @@ REFERENCES = {
     "warmup": "adc_warmup1000",
     "shipped": "adc_shipped",
     "lidar": "adc_legendre",
+    "lidar_plain": "adc_legendre",
+    "wallclock": "adc_shipped",
+    "recipe": "adc_td3_recipe",
 }
 
 
@@ -232,11 +267,14 @@ def _interval(data: dict[str, Any], func: Any, reps: int, seed: int) -> tuple[di
     return points, intervals
 
 
-def summary(final: pd.DataFrame, evaluations: pd.DataFrame, reps: int, reference: str) -> pd.DataFrame:
+def summary(
+    final: pd.DataFrame, evaluations: pd.DataFrame, reps: int, reference: str, episodes: pd.DataFrame | None = None
+) -> pd.DataFrame:
     """
     Per environment and configuration: final-return IQM and mean with CIs, across-seed std, area under the
     evaluation curve (per run: the mean evaluation return over the run, trapezoidal in timesteps) with its IQM
-    and CI, and the probability that ``reference`` improves on the configuration (final return), with CI.
+    and CI, the probability that ``reference`` improves on the configuration (final return), with CI, and, when
+    the episodes carry their wall-clock time, the median seconds a run trained (``run_time_s_median``).
     """
     rows = []
     for env, env_final in final.groupby("env", sort=True):
@@ -279,6 +317,9 @@ def summary(final: pd.DataFrame, evaluations: pd.DataFrame, reps: int, reference
                 "auc_iqm_ci_high": area_intervals[name][1, 0],
                 "auc_mean": area_points[name][1],
             }
+            if episodes is not None and "wall_time_s" in episodes.columns:
+                runs = episodes[(episodes["env"] == env) & (episodes["algo"] == name)]
+                row["run_time_s_median"] = float(runs.groupby("seed")["wall_time_s"].max().median())
             if name in improvement[0]:
                 row["p_improvement_of_adc"] = float(np.asarray(improvement[0][name]).reshape(-1)[0])
                 low, high = np.asarray(improvement[1][name]).reshape(2, -1)[:, 0]
@@ -367,13 +408,14 @@ def main() -> None:
     final, evaluations = merge(tables, FINAL_CSV), merge(tables, EVALUATIONS_CSV)
     final.to_csv(output / FINAL_CSV, index=False)
     evaluations.to_csv(output / EVALUATIONS_CSV, index=False)
-    merge(tables, EPISODES_CSV).to_csv(output / EPISODES_CSV, index=False)
+    episodes = merge(tables, EPISODES_CSV)
+    episodes.to_csv(output / EPISODES_CSV, index=False)
     reference = args.reference or REFERENCES[args.grid]
-    table = summary(final, evaluations, args.reps, reference)
+    table = summary(final, evaluations, args.reps, reference, episodes)
     table.to_csv(output / "summary.csv", index=False)
     (output / "summary.md").write_text(markdown(table, reference))
     display_table(table, reference).to_csv(output / "summary_table.csv", index=False)
-    plots = plot_results(evaluations, str(output), final=final, episodes=pd.read_csv(output / EPISODES_CSV), reps=args.reps)
+    plots = plot_results(evaluations, str(output), final=final, episodes=episodes, reps=args.reps)
     if not args.quick:
         DOCS_STATIC.mkdir(parents=True, exist_ok=True)
         for figure in plots.figures:

@@ -27,11 +27,13 @@ with requires_extra("experiment", "the benchmark figures"):
     from sb3_adc.experiment.statistics import (
         episode_variance,
         final_performance,
+        has_wall_times,
         last_evaluations,
         learning_curves,
         markdown_table,
         performance_profiles,
         probability_of_improvement,
+        wallclock_curves,
     )
 
 #: Algorithm id (``--algo``) -> the name the figures give it, as the paper's text does.
@@ -121,6 +123,33 @@ def plot_learning_curves(curves: pd.DataFrame, path: str, title: str = "") -> st
     for ax in axes[len(envs) :]:
         ax.set_visible(False)
     figure.suptitle(title or "Mean evaluation return across runs (95% bootstrap CI)", fontsize="medium")
+    figure.savefig(path, dpi=120)
+    return path
+
+
+def plot_wallclock_curves(curves: pd.DataFrame, path: str) -> str:
+    """
+    One panel per environment: the learning curves of :func:`plot_learning_curves` against the seconds of
+    training (evaluations included) instead of timesteps, so that a slower algorithm pays for its speed.
+
+    :param curves: The output of :func:`~sb3_adc.experiment.statistics.wallclock_curves`
+    :param path: The PNG file
+    """
+    envs = sorted(curves["env"].unique())
+    colors = _colors(list(curves["algo"].unique()))
+    figure, axes = _grid(len(envs))
+    for ax, env in zip(axes, envs, strict=False):
+        for algo, group in curves[curves["env"] == env].groupby("algo", sort=True):
+            color = colors[str(algo)]
+            runs = int(group["n_runs"].iloc[0])
+            ax.plot(group["wall_time_s"], group["mean"], color=color, label=f"{display_name(str(algo))} ({runs} runs)")
+            ax.fill_between(group["wall_time_s"], group["mean_ci_low"], group["mean_ci_high"], color=color, alpha=0.2)
+        ax.set(title=env, xlabel="wall-clock time of training (s)", ylabel="latest evaluation return")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize="small")
+    for ax in axes[len(envs) :]:
+        ax.set_visible(False)
+    figure.suptitle("Mean evaluation return against wall-clock time (95% bootstrap CI)", fontsize="medium")
     figure.savefig(path, dpi=120)
     return path
 
@@ -317,7 +346,8 @@ def plot_results(
 
     Files: ``learning_curves.png``, ``reward_variance.png``, ``final_performance.png``, ``curves.csv``
     (mean, IQM and variance across runs at each timestep, with CIs), ``final_performance.csv`` and
-    ``final_performance.md`` (IQM and mean with 95% CIs), and ``episode_variance.csv`` when episodes are given.
+    ``final_performance.md`` (IQM and mean with 95% CIs), ``episode_variance.csv`` when episodes are given, and
+    ``wallclock_curves.png`` and ``.csv`` when they hold their wall-clock times.
     :func:`plot_comparisons` adds rliable's performance profiles and probability of improvement.
 
     :param evaluations: The evaluation curves (``evaluations.csv``)
@@ -351,6 +381,13 @@ def plot_results(
     outputs.figures.append(plot_learning_curves(curves, out("learning_curves.png")))
     outputs.figures.append(plot_reward_variance(curves, episodes, out("reward_variance.png"), window))
     outputs.figures.append(plot_final_performance(performance, out("final_performance.png")))
+    if has_wall_times(episodes):
+        assert episodes is not None
+        timed = wallclock_curves(evaluations, episodes, reps=reps, seed=seed)
+        if not timed.empty:
+            timed.to_csv(out("wallclock_curves.csv"), index=False)
+            outputs.tables.append(out("wallclock_curves.csv"))
+            outputs.figures.append(plot_wallclock_curves(timed, out("wallclock_curves.png")))
     return outputs
 
 

@@ -33,7 +33,7 @@ EVALUATION_COLUMNS = (
     "mean_ep_length",
     "n_episodes",
 )
-EPISODE_COLUMNS = ("algo", "env", "seed", "episode", "timesteps", "return", "length")
+EPISODE_COLUMNS = ("algo", "env", "seed", "episode", "timesteps", "return", "length", "wall_time_s")
 FINAL_COLUMNS = ("algo", "env", "seed", "timesteps", "mean_return", "std_return", "n_episodes")
 
 Row = dict[str, Any]
@@ -73,7 +73,8 @@ def episode_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
     The training episodes of a run, in the order they ended (columns :data:`EPISODE_COLUMNS`).
 
     ``timesteps`` is the run's timestep count when the episode ended (steps of its environment times the
-    number of environments).
+    number of environments); ``wall_time_s`` the seconds the run had been training then (the monitor's ``t``,
+    evaluations included; see :func:`training_seconds` for resumed runs).
 
     :param layout: The run's paths
     :param algo: The algorithm's name
@@ -84,7 +85,16 @@ def episode_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
     for path in files:
         frame = read_monitor(path)
         steps = frame[TOTAL_STEPS_KEY] if TOTAL_STEPS_KEY in frame else frame["l"].cumsum()
-        frames.append(pd.DataFrame({"timesteps": steps * len(files), "return": frame["r"], "length": frame["l"]}))
+        frames.append(
+            pd.DataFrame(
+                {
+                    "timesteps": steps * len(files),
+                    "return": frame["r"],
+                    "length": frame["l"],
+                    "wall_time_s": training_seconds(frame["t"].to_numpy(np.float64)),
+                }
+            )
+        )
     if not frames:
         return []
     episodes = pd.concat(frames).sort_values("timesteps", kind="stable").reset_index(drop=True)
@@ -97,9 +107,29 @@ def episode_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
             "timesteps": int(row.timesteps),
             "return": float(row["return"]),
             "length": int(row.length),
+            "wall_time_s": float(row.wall_time_s),
         }
         for index, row in episodes.iterrows()
     ]
+
+
+def training_seconds(monitor_times: np.ndarray) -> np.ndarray:
+    """
+    Seconds of training at the end of each episode of one monitor file, across resumes.
+
+    SB3's ``Monitor`` times episodes from its own creation, so a resumed run's clock starts again at zero: each
+    restart continues from the last episode recorded before it (the time between that episode and the
+    interruption, lost work, is not counted).
+
+    :param monitor_times: The monitor's ``t`` column, in file order
+    """
+    times = np.asarray(monitor_times, dtype=np.float64)
+    if times.size == 0:
+        return times
+    restarts = np.concatenate([[False], np.diff(times) < 0])
+    # A restart adds the time reached before it to every later episode.
+    carried = np.cumsum(np.where(restarts, np.concatenate([[0.0], times[:-1]]), 0.0))
+    return times + carried
 
 
 def final_row(layout: RunLayout, algo: str, seed: int) -> Row | None:

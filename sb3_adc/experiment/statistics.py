@@ -50,7 +50,7 @@ CURVE_COLUMNS = (
     "variance_ci_low",
     "variance_ci_high",
 )
-
+WALLCLOCK_CURVE_COLUMNS = ("env", "algo", "wall_time_s", "n_runs", "mean", "mean_ci_low", "mean_ci_high", "iqm")
 
 PERFORMANCE_PROFILE_COLUMNS = ("env", "algo", "n_runs", "tau", "fraction", "fraction_ci_low", "fraction_ci_high")
 IMPROVEMENT_COLUMNS = ("algo_x", "algo_y", "n_envs", "probability", "ci_low", "ci_high")
@@ -191,6 +191,91 @@ def learning_curves(evaluations: pd.DataFrame, reps: int = 2000, seed: int = 0) 
     if not frames:
         return pd.DataFrame(columns=list(CURVE_COLUMNS))
     return pd.concat(frames, ignore_index=True)[list(CURVE_COLUMNS)]
+
+
+def has_wall_times(episodes: pd.DataFrame | None) -> bool:
+    """Whether training episodes carry their wall-clock time (``wall_time_s``; tables of older runs do not)."""
+    return episodes is not None and "wall_time_s" in episodes.columns and bool(episodes["wall_time_s"].notna().any())
+
+
+def evaluation_times(evaluations: pd.DataFrame, episodes: pd.DataFrame) -> pd.DataFrame:
+    """
+    The evaluations with the seconds their run had trained when each was made (column ``wall_time_s``),
+    interpolated between the ends of the training episodes around it (``episodes.csv``'s ``timesteps`` and
+    ``wall_time_s``). Runs without episode times are left out.
+
+    :param evaluations: The evaluation curves (``evaluations.csv``)
+    :param episodes: The training episodes (``episodes.csv``, with ``wall_time_s``)
+    """
+    frames = []
+    for (env, algo, seed), group in evaluations.groupby(["env", "algo", "seed"], sort=True):
+        run = episodes[(episodes["env"] == env) & (episodes["algo"] == algo) & (episodes["seed"] == seed)]
+        run = run.dropna(subset=["wall_time_s"]).sort_values("timesteps", kind="stable")
+        if run.empty:
+            continue
+        # The run's clock starts at zero steps: evaluations before the first episode's end are interpolated from it.
+        steps = np.concatenate([[0.0], run["timesteps"].to_numpy(np.float64)])
+        seconds = np.concatenate([[0.0], run["wall_time_s"].to_numpy(np.float64)])
+        timed = group.copy()
+        timed["wall_time_s"] = np.interp(group["timesteps"].to_numpy(np.float64), steps, seconds)
+        frames.append(timed)
+    return pd.concat(frames, ignore_index=True) if frames else evaluations.iloc[:0].assign(wall_time_s=[])
+
+
+def wallclock_curves(
+    evaluations: pd.DataFrame, episodes: pd.DataFrame, n_points: int = 50, reps: int = 2000, seed: int = 0
+) -> pd.DataFrame:
+    """
+    Learning curves against wall-clock time: across the runs of each (env, algo), at ``n_points`` times, the
+    mean of the latest evaluation return each run had reached by then (what it would return if stopped there),
+    with its 95% stratified-bootstrap CI, and the IQM. The times span from the latest first evaluation to the
+    earliest last evaluation of the runs, so every run counts at every point; a slower algorithm's curve ends
+    earlier on the time axis only if its runs finish earlier.
+
+    :param evaluations: The evaluation curves (``evaluations.csv``)
+    :param episodes: The training episodes (``episodes.csv``, with ``wall_time_s``)
+    :param n_points: Times per curve (at least 2)
+    :param reps: Bootstrap replications
+    :param seed: Seed of the bootstrap
+    :return: One row per (env, algo, time), columns :data:`WALLCLOCK_CURVE_COLUMNS`
+    """
+    if n_points < 2:
+        raise ValueError(f"n_points must be >= 2, got {n_points}")
+    timed = evaluation_times(evaluations, episodes)
+    frames = []
+    for (env, algo), group in timed.groupby(["env", "algo"], sort=True):
+        runs = [run.sort_values("wall_time_s") for _, run in group.groupby("seed", sort=True)]
+        start = max(float(run["wall_time_s"].iloc[0]) for run in runs)
+        stop = min(float(run["wall_time_s"].iloc[-1]) for run in runs)
+        if stop <= start:
+            continue
+        times = np.linspace(start, stop, n_points)
+        matrix = np.stack(
+            [
+                run["mean_return"].to_numpy(np.float64)[
+                    np.searchsorted(run["wall_time_s"].to_numpy(np.float64), times, side="right") - 1
+                ]
+                for run in runs
+            ]
+        )
+        point, interval = _bootstrap(matrix[:, None, :], _curve_metrics, reps, seed)
+        frames.append(
+            pd.DataFrame(
+                {
+                    "env": env,
+                    "algo": algo,
+                    "wall_time_s": times,
+                    "n_runs": matrix.shape[0],
+                    "mean": point[:n_points],
+                    "mean_ci_low": interval[0, :n_points],
+                    "mean_ci_high": interval[1, :n_points],
+                    "iqm": point[n_points : 2 * n_points],
+                }
+            )
+        )
+    if not frames:
+        return pd.DataFrame(columns=list(WALLCLOCK_CURVE_COLUMNS))
+    return pd.concat(frames, ignore_index=True)[list(WALLCLOCK_CURVE_COLUMNS)]
 
 
 def episode_variance(episodes: pd.DataFrame, window: int = 10) -> pd.DataFrame:

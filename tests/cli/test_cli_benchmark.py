@@ -2,6 +2,7 @@
 
 import os
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -62,6 +63,12 @@ def test_rerunning_skips_finished_runs_and_resumes_interrupted_ones(grid, cli):
     kept = after[(after.algo == "ddpg") & (after.seed == 0)]
     assert list(kept["timesteps"]) == [100, 200]
     assert kept["mean_return"].iloc[0] == before[(before.algo == "ddpg") & (before.seed == 0)]["mean_return"].iloc[0]
+    # The resumed run's training time goes on from where its first part stopped.
+    episodes = pd.read_csv(folder / "episodes.csv")
+    for _, run in episodes.groupby(["algo", "seed"]):
+        times = run.sort_values("timesteps")["wall_time_s"].to_numpy()
+        assert (times > 0).all()
+        assert (np.diff(times) >= 0).all()
 
 
 def test_plot_writes_figures_and_an_iqm_table(grid, cli, tmp_path):

@@ -24,5 +24,8 @@ def test_ray_backend_writes_the_same_tables_as_the_local_one(cli, tiny_conf, tmp
     for table in ("evaluations.csv", "episodes.csv", "final.csv"):
         on_ray, local = pd.read_csv(tmp_path / "ray" / table), pd.read_csv(tmp_path / "local" / table)
         assert len(on_ray) > 0
-        # Same columns, same rows, and (one thread, same seeds) the same numbers.
-        pd.testing.assert_frame_equal(on_ray, local, check_exact=False, rtol=1e-6)
+        assert list(on_ray.columns) == list(local.columns)
+        # Same rows and (one thread, same seeds) the same numbers, but for the seconds each episode took.
+        timed = [column for column in on_ray.columns if column == "wall_time_s"]
+        assert all((table[timed].to_numpy() > 0).all() for table in (on_ray, local))
+        pd.testing.assert_frame_equal(on_ray.drop(columns=timed), local.drop(columns=timed), check_exact=False, rtol=1e-6)

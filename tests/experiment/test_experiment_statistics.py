@@ -6,7 +6,15 @@ import pytest
 from scipy.stats import trim_mean
 
 from sb3_adc.experiment.plots import plot_results
-from sb3_adc.experiment.statistics import episode_variance, final_performance, learning_curves, markdown_table
+from sb3_adc.experiment.results import training_seconds
+from sb3_adc.experiment.statistics import (
+    episode_variance,
+    evaluation_times,
+    final_performance,
+    learning_curves,
+    markdown_table,
+    wallclock_curves,
+)
 
 
 def synthetic_evaluations(n_seeds=6, steps=(100, 200, 300, 400)):
@@ -123,3 +131,66 @@ def test_plot_results_writes_every_output(tmp_path):
         assert (tmp_path / path.rsplit("/", 1)[1]).stat().st_size > 10_000
     with pytest.raises(ValueError, match="no evaluations to plot"):
         plot_results(synthetic_evaluations().iloc[:0], str(tmp_path))
+
+
+def test_training_seconds_continue_across_a_resume():
+    # The monitor's clock restarts at zero when a run resumes: later episodes continue from the last one before.
+    assert training_seconds(np.array([1.0, 2.0, 3.0, 0.5, 1.5, 0.2])).tolist() == pytest.approx([1, 2, 3, 3.5, 4.5, 4.7])
+    assert training_seconds(np.array([])).size == 0
+
+
+def timed_runs():
+    """Two algorithms, two seeds: 'slow' takes twice as long per step as 'fast', with the same evaluations."""
+    evaluations, episodes = [], []
+    for algo, seconds_per_step in (("fast", 0.01), ("slow", 0.02)):
+        for seed in (0, 1):
+            for step in (100, 200, 300, 400):
+                value = -400.0 + step + 10 * seed
+                evaluations.append({"algo": algo, "env": "E", "seed": seed, "timesteps": step, "mean_return": value})
+                episodes.append(
+                    {"algo": algo, "env": "E", "seed": seed, "timesteps": step, "wall_time_s": step * seconds_per_step}
+                )
+    return pd.DataFrame(evaluations), pd.DataFrame(episodes)
+
+
+def test_evaluations_are_placed_at_the_time_their_run_reached_them():
+    evaluations, episodes = timed_runs()
+    # An evaluation between episode ends is interpolated; before the first end, from zero seconds at zero steps.
+    episodes = episodes[episodes.timesteps != 200]
+    timed = evaluation_times(evaluations, episodes)
+    slow = timed[(timed.algo == "slow") & (timed.seed == 0)]
+    assert slow["wall_time_s"].tolist() == pytest.approx([2.0, 4.0, 6.0, 8.0])
+    # A run without times is left out.
+    assert evaluation_times(evaluations, episodes[episodes.algo == "fast"])["algo"].unique().tolist() == ["fast"]
+
+
+def test_wallclock_curves_hold_the_latest_evaluation_of_every_run():
+    evaluations, episodes = timed_runs()
+    curves = wallclock_curves(evaluations, episodes, n_points=4, reps=100)
+    fast = curves[curves.algo == "fast"]
+    slow = curves[curves.algo == "slow"]
+    # From the first to the last evaluation of the runs: 1 to 4 s for the fast one, 2 to 8 s for the slow one.
+    assert fast["wall_time_s"].tolist() == pytest.approx([1.0, 2.0, 3.0, 4.0])
+    assert slow["wall_time_s"].tolist() == pytest.approx([2.0, 4.0, 6.0, 8.0])
+    # The mean of the two seeds' latest returns: the same returns, reached twice as late by the slow algorithm.
+    assert fast["mean"].tolist() == pytest.approx([-295.0, -195.0, -95.0, 5.0])
+    assert slow["mean"].tolist() == pytest.approx(fast["mean"].tolist())
+    assert (curves["mean_ci_low"] <= curves["mean"]).all()
+    assert (curves["mean"] <= curves["mean_ci_high"]).all()
+    # At 3 s the slow runs have only their first evaluation (made at 2 s).
+    at_three = wallclock_curves(evaluations, episodes, n_points=7, reps=100)
+    point = at_three[(at_three.algo == "slow") & np.isclose(at_three.wall_time_s, 3.0)]
+    assert point["mean"].tolist() == pytest.approx([-295.0])
+    with pytest.raises(ValueError, match="n_points must be >= 2"):
+        wallclock_curves(evaluations, episodes, n_points=1)
+
+
+def test_plot_results_adds_the_wallclock_curves_when_episodes_are_timed(tmp_path):
+    evaluations, episodes = timed_runs()
+    episodes["episode"], episodes["return"] = 1, -1.0
+    outputs = plot_results(evaluations, str(tmp_path), episodes=episodes, reps=100)
+    names = {path.rsplit("/", 1)[1] for path in outputs.figures + outputs.tables}
+    assert {"wallclock_curves.png", "wallclock_curves.csv"} <= names
+    assert (tmp_path / "wallclock_curves.png").stat().st_size > 10_000
+    untimed = plot_results(evaluations, str(tmp_path / "untimed"), episodes=episodes.drop(columns="wall_time_s"), reps=100)
+    assert not any("wallclock" in path for path in untimed.figures)
