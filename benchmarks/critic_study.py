@@ -28,6 +28,8 @@ Usage::
     python benchmarks/critic_study.py --grid lidar_plain --workers 2    # the plain lidar course alone
     python benchmarks/critic_study.py --grid wallclock --workers 2      # the shipped entries against wall-clock time
     python benchmarks/critic_study.py --grid recipe --workers 2         # ADC's critic in TD3's recipe, seeds 0-4
+    python benchmarks/critic_study.py --grid intervals --workers 2      # 20-140 intervals, shipped entries
+    python benchmarks/critic_study.py --grid intervals_paper --workers 2  # the same with the paper's Table 3
     python benchmarks/critic_study.py --configs adc ddpg --workers 2    # a subset (its tables hold only these)
     python benchmarks/critic_study.py --quick                           # a smoke run
 """
@@ -51,9 +53,10 @@ from rliable import library as rly
 from rliable import metrics
 
 import sb3_adc
+from sb3_adc.config import packaged_hyperparams_file
 from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CSV, BenchmarkSettings, RunOutcome, run_benchmark
 from sb3_adc.experiment.plots import plot_results
-from sb3_adc.experiment.statistics import CONFIDENCE
+from sb3_adc.experiment.statistics import CONFIDENCE, time_to_threshold
 
 ROOT = Path(__file__).resolve().parent
 RUNS_DIR = ROOT / "runs" / "critic_study"
@@ -68,6 +71,9 @@ ZOO = ROOT / "configs" / "rl_zoo"
 #: ``hyperparams/{adc,ddpg}.yml`` as shipped until the warm-up ablation (``learning_starts: 5000`` on the noisy
 #: Pendulum): the grids run before it train these copies, so their committed results stay reproducible.
 WARMUP5000 = ROOT / "configs" / "warmup5000"
+
+#: The paper's hyperparameter files (``hyperparams/paper/{algo}.yml``: Table 3 for the noisy Pendulum).
+PAPER = Path(packaged_hyperparams_file("paper/adc")).parent
 
 #: ADC with TD3's tuned entry and TD3's additions (twin critics, target smoothing, delayed actor updates).
 TD3_RECIPE = ROOT / "configs" / "td3_recipe"
@@ -102,6 +108,10 @@ CONFIGS: dict[str, tuple[str, dict[str, Any], Path | None]] = {
     "sac_tuned_warmup5000": ("sac", {"learning_starts": 5000}, TUNED),
     # ADC's dueling critic inside TD3's tuned recipe.
     "adc_td3_recipe": ("adc", {}, TD3_RECIPE),
+    # The paper's interval counts (Figures 9-10): the shipped entry, and the paper's Table 3 (its critic).
+    **{f"adc_shipped_n{n}": ("adc", {"n_intervals": n}, None) for n in (20, 60, 140)},
+    **{f"adc_table3_n{n}": ("adc", {"n_intervals": n}, PAPER) for n in (20, 60, 100, 140)},
+    "ddpg_table3": ("ddpg", {}, PAPER),
 }
 
 #: Grid name -> (environments, seeds, default configurations).
@@ -179,6 +189,20 @@ GRIDS: dict[str, tuple[list[str], list[int], list[str]]] = {
         list(range(5)),
         ["adc_td3_recipe", "td3_tuned"],
     ),
+    # The paper's Figures 9-10: ADC with 20, 60, 100 and 140 intervals against DDPG on the noisy Pendulum, with
+    # the shipped entries (the runs folder is the tuned grid's: the 100-interval ADC and DDPG are the wallclock
+    # grid's runs) and with the paper's Table 3 for 300 episodes (60 000 steps; the paper's figures show the first
+    # few hundred episodes).
+    "intervals": (
+        ["sb3_adc/NoisyPendulum-v1"],
+        list(range(1000, 1010)),
+        ["adc_shipped_n20", "adc_shipped_n60", "adc_shipped", "adc_shipped_n140", "ddpg_shipped"],
+    ),
+    "intervals_paper": (
+        ["sb3_adc/NoisyPendulum-v1"],
+        list(range(1000, 1010)),
+        ["adc_table3_n20", "adc_table3_n60", "adc_table3_n100", "adc_table3_n140", "ddpg_table3"],
+    ),
     # The shipped entries of the noisy Pendulum again, now that the tables hold each episode's wall-clock time:
     # learning curves against seconds of training, the cost side of the default critic (the runs folder is the
     # tuned grid's, so on a machine that kept the shipped grid's runs nothing is retrained).
@@ -190,10 +214,10 @@ GRIDS: dict[str, tuple[list[str], list[int], list[str]]] = {
 }
 
 #: Grid -> the grid whose runs folder it shares (a finished run is then trained once for both).
-SHARED_RUNS = {"shipped": "tuned", "lidar_plain": "lidar", "wallclock": "tuned", "recipe": "warmup"}
+SHARED_RUNS = {"shipped": "tuned", "lidar_plain": "lidar", "wallclock": "tuned", "recipe": "warmup", "intervals": "tuned"}
 
 #: Grid -> budget of every run, when it is not ``DEFAULT_BUDGET`` (``None``: each entry's ``n_timesteps``).
-BUDGETS: dict[str, int | None] = {"lidar": None, "lidar_plain": None}
+BUDGETS: dict[str, int | None] = {"lidar": None, "lidar_plain": None, "intervals_paper": 60_000}
 DEFAULT_BUDGET = 20_000
 
 #: Grid -> the configuration whose improvement over the others is measured.
@@ -208,7 +232,13 @@ REFERENCES = {
     "lidar_plain": "adc_legendre",
     "wallclock": "adc_shipped",
     "recipe": "adc_td3_recipe",
+    "intervals": "adc_shipped",
+    "intervals_paper": "adc_table3_n100",
 }
+
+#: Grid -> the evaluation return a run must stay at or above to count as converged (the paper's "converges at
+#: around the 120th episode"), fixed before the runs: a Pendulum policy above -300 swings up and holds the pole.
+THRESHOLDS = {"intervals": -300.0, "intervals_paper": -300.0}
 
 
 def report(outcome: RunOutcome, done: int, total: int) -> None:
@@ -371,6 +401,22 @@ def markdown(table: pd.DataFrame, reference: str) -> str:
     return "\n".join(lines) + "\n"
 
 
+def threshold_markdown(converged: pd.DataFrame, threshold: float) -> str:
+    """Per configuration: runs that stay above ``threshold`` by the end, and the median episodes until they do
+    (a run that never does counts as beyond its budget, so the median is a lower bound when it is one of them)."""
+    lines = [
+        f"| env | configuration | runs at or above {threshold:g} by the end | median episodes until they stay there |",
+        "|---|---|---:|---:|",
+    ]
+    for (env, name), group in converged.groupby(["env", "algo"], sort=False):
+        episodes = group["episodes"].fillna(np.inf).to_numpy(np.float64)
+        median = float(np.median(episodes))
+        budget = int(group["budget_episodes"].max())
+        shown = f"> {budget}" if np.isinf(median) else f"{median:.0f}"
+        lines.append(f"| {env} | {name} | {int(group['reached'].sum())} of {len(group)} | {shown} |")
+    return "\n".join(lines) + "\n"
+
+
 def _hyperparams_origin(folder: Path | None) -> str:
     return "shipped" if folder is None else str(folder.relative_to(ROOT.parent))
 
@@ -415,6 +461,11 @@ def main() -> None:
     table.to_csv(output / "summary.csv", index=False)
     (output / "summary.md").write_text(markdown(table, reference))
     display_table(table, reference).to_csv(output / "summary_table.csv", index=False)
+    if args.grid in THRESHOLDS:
+        threshold = THRESHOLDS[args.grid]
+        converged = time_to_threshold(evaluations, episodes, threshold)
+        converged.to_csv(output / "time_to_threshold.csv", index=False)
+        (output / "time_to_threshold.md").write_text(threshold_markdown(converged, threshold))
     plots = plot_results(evaluations, str(output), final=final, episodes=episodes, reps=args.reps)
     if not args.quick:
         DOCS_STATIC.mkdir(parents=True, exist_ok=True)

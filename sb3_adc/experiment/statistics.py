@@ -278,6 +278,44 @@ def wallclock_curves(
     return pd.concat(frames, ignore_index=True)[list(WALLCLOCK_CURVE_COLUMNS)]
 
 
+def time_to_threshold(evaluations: pd.DataFrame, episodes: pd.DataFrame, threshold: float) -> pd.DataFrame:
+    """
+    When each run's evaluation return first stays at or above ``threshold`` until the end of the run (the ADC
+    paper's "converges at around the 120th episode"): the timestep of that evaluation and the number of training
+    episodes finished by then. A run whose last evaluation is below the threshold has not reached it (``NaN``).
+
+    :param evaluations: The evaluation curves (``evaluations.csv``)
+    :param episodes: The training episodes (``episodes.csv``), to count episodes
+    :param threshold: The evaluation return to stay above
+    :return: One row per run: ``env``, ``algo``, ``seed``, ``reached``, ``timesteps``, ``episodes``,
+        ``budget_timesteps`` and ``budget_episodes`` (the run's last evaluation and the episodes finished by then)
+    """
+    rows = []
+    for (env, algo, seed), run in evaluations.groupby(["env", "algo", "seed"], sort=True):
+        run = run.sort_values("timesteps")
+        steps = run["timesteps"].to_numpy(np.int64)
+        below = np.flatnonzero(run["mean_return"].to_numpy(np.float64) < threshold)
+        first = 0 if below.size == 0 else int(below[-1]) + 1
+        ends = episodes.loc[
+            (episodes["env"] == env) & (episodes["algo"] == algo) & (episodes["seed"] == seed), "timesteps"
+        ].to_numpy(np.int64)
+        reached = first < len(steps)
+        rows.append(
+            {
+                "env": env,
+                "algo": algo,
+                "seed": seed,
+                "reached": reached,
+                "timesteps": int(steps[first]) if reached else np.nan,
+                "episodes": int((ends <= steps[first]).sum()) if reached else np.nan,
+                "budget_timesteps": int(steps[-1]),
+                "budget_episodes": int((ends <= steps[-1]).sum()),
+            }
+        )
+    columns = ["env", "algo", "seed", "reached", "timesteps", "episodes", "budget_timesteps", "budget_episodes"]
+    return pd.DataFrame(rows, columns=columns)
+
+
 def episode_variance(episodes: pd.DataFrame, window: int = 10) -> pd.DataFrame:
     """
     Across-run variance of the training-episode returns at each episode index (the x axis of the paper's

@@ -13,6 +13,7 @@ from sb3_adc.experiment.statistics import (
     final_performance,
     learning_curves,
     markdown_table,
+    time_to_threshold,
     wallclock_curves,
 )
 
@@ -194,3 +195,26 @@ def test_plot_results_adds_the_wallclock_curves_when_episodes_are_timed(tmp_path
     assert (tmp_path / "wallclock_curves.png").stat().st_size > 10_000
     untimed = plot_results(evaluations, str(tmp_path / "untimed"), episodes=episodes.drop(columns="wall_time_s"), reps=100)
     assert not any("wallclock" in path for path in untimed.figures)
+
+
+def test_time_to_threshold_is_the_first_evaluation_after_which_the_return_stays_above():
+    evaluations = pd.DataFrame(
+        {
+            "env": "E",
+            "algo": ["a"] * 4 + ["b"] * 4,
+            "seed": 0,
+            "timesteps": [100, 200, 300, 400] * 2,
+            # a: above at 200, dips at 300, above again from 400; b: ends below.
+            "mean_return": [-500.0, -100.0, -400.0, -150.0, -100.0, -100.0, -100.0, -350.0],
+        }
+    )
+    episodes = pd.DataFrame({"env": "E", "algo": ["a"] * 8 + ["b"] * 8, "seed": 0, "timesteps": list(range(50, 450, 50)) * 2})
+    table = time_to_threshold(evaluations, episodes, threshold=-200.0).set_index("algo")
+    assert bool(table.loc["a", "reached"])
+    assert table.loc["a", "timesteps"] == 400
+    assert table.loc["a", "episodes"] == 8
+    assert not bool(table.loc["b", "reached"])
+    assert np.isnan(table.loc["b", "episodes"])
+    assert table.loc["b", "budget_episodes"] == 8
+    # Above from the first evaluation on: reached at the first one.
+    assert time_to_threshold(evaluations, episodes, threshold=-1000.0)["timesteps"].tolist() == [100, 100]
