@@ -1,0 +1,240 @@
+"""
+Generalisation on the procedural lidar course, the Procgen/MetaDrive protocol: ADC, DDPG, TD3 and SAC train with
+their shipped ``sb3_adc/LidarObstacleCourse-v1`` entries on the training layouts (layout seeds 0-999,999), then
+each final model is scored on layouts and courses it never saw:
+
+- the 100 held-out layouts (``TEST_LAYOUT_SEEDS``, 1,000,000-1,000,099), one episode each from the layout's start;
+- every shipped course file (``envs/courses/``: the paper-style training loop and the unseen layouts, obstacle
+  courses included), ``--course-episodes`` episodes each from a start jittered by 0.1 m and 10 degrees.
+
+An episode is a success when it ends without a collision (``info["is_success"]``: 500 steps driven). Per run the
+success rate of each test set; per algorithm and test set, the IQM and mean of the runs' rates with 95%
+stratified-bootstrap CIs (rliable), and the probability that ADC's rate exceeds each other algorithm's.
+
+Training is ``sb3-adc benchmark``'s engine (resumable, one process per run, same seeds and evaluation for every
+algorithm); the runs go to ``benchmarks/runs/procedural_generalisation/`` (not committed), the tables to
+``benchmarks/results/procedural_generalisation/{name}/``, the figure to
+``docs/_static/benchmarks/procedural_generalisation_{name}.png``.
+
+Usage::
+
+    python benchmarks/procedural_generalisation.py --workers 2                 # clean observations, kinematic robot
+    python benchmarks/procedural_generalisation.py --env sb3_adc/LidarObstacleCourseNoisy-v1 --workers 2
+    python benchmarks/procedural_generalisation.py --robot wheeled --workers 2   # the robot with dynamics
+    python benchmarks/procedural_generalisation.py --quick                     # a smoke run
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pandas as pd
+import stable_baselines3
+import torch as th
+
+import sb3_adc
+from sb3_adc.config.loader import load_hyperparams
+from sb3_adc.experiment.benchmark import FINAL_CSV, BenchmarkSettings, RunOutcome, RunSpec, run_benchmark
+from sb3_adc.experiment.enjoy import load_model, load_run
+from sb3_adc.experiment.plots import plot_final_performance
+from sb3_adc.experiment.statistics import final_performance, probability_of_improvement
+from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS
+
+ROOT = Path(__file__).resolve().parent
+RUNS_DIR = ROOT / "runs" / "procedural_generalisation"
+RESULTS_DIR = ROOT / "results" / "procedural_generalisation"
+DOCS_STATIC = ROOT.parent / "docs" / "_static" / "benchmarks"
+COURSES_DIR = ROOT.parent / "envs" / "courses"
+
+ALGOS = ["adc", "ddpg", "td3", "sac"]
+SEEDS = list(range(1000, 1010))
+HELD_OUT = "held-out layouts"
+#: Start-pose jitter of the course-file episodes (a fixed start would repeat one episode).
+COURSE_JITTER = {"start_position_jitter": 0.1, "start_heading_jitter_deg": 10.0}
+#: Keywords of the training entries that only vary the start during training.
+TRAINING_ONLY = ("start_position_jitter", "start_heading_jitter_deg")
+
+
+def report(outcome: RunOutcome, done: int, total: int) -> None:
+    final = "" if outcome.final is None else f" final return {outcome.final['mean_return']:.2f}"
+    print(f"[{done}/{total}] {outcome.spec}: {outcome.status}{final}", flush=True)
+    if outcome.status == "failed":
+        print(outcome.error, flush=True)
+
+
+def episode_success(model: Any, env: gym.Env, **reset: Any) -> bool:
+    """Run one deterministic episode; whether it ended without a collision."""
+    observation, _ = env.reset(**reset)
+    while True:
+        action, _ = model.predict(observation, deterministic=True)
+        observation, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            return bool(info["is_success"])
+
+
+def score_run(
+    run_dir: str, algo: str, env_id: str, seed: int, courses: list[str], course_episodes: int, n_layouts: int
+) -> list[dict[str, Any]]:
+    """The success rate of a finished run's final model on the held-out layouts and on each course file."""
+    th.set_num_threads(1)
+    _, config, layout = load_run(run_dir)
+    if config.normalize is not None or config.frame_stack is not None:
+        raise SystemExit(f"{run_dir}: scoring supports entries without `normalize` and `frame_stack`")
+    model = load_model(config, layout.final_model, device="cpu")
+    kwargs = {key: value for key, value in config.env_kwargs.items() if key not in TRAINING_ONLY}
+    rows = []
+
+    def row(test_set: str, successes: list[bool]) -> dict[str, Any]:
+        return {
+            "algo": algo,
+            "env": env_id,
+            "seed": seed,
+            "test_set": test_set,
+            "episodes": len(successes),
+            "successes": int(sum(successes)),
+            "success_rate": float(np.mean(successes)),
+        }
+
+    env = config.wrap_env(gym.make(env_id, **{**kwargs, "layout_seeds": TEST_LAYOUT_SEEDS}))
+    first = TEST_LAYOUT_SEEDS[0]
+    rows.append(row(HELD_OUT, [episode_success(model, env, options={"layout_seed": first + k}) for k in range(n_layouts)]))
+    env.close()
+    for course in courses:
+        env = config.wrap_env(gym.make(env_id, **{**kwargs, **COURSE_JITTER, "course": course}))
+        rows.append(row(course, [episode_success(model, env, seed=k) for k in range(course_episodes)]))
+        env.close()
+    return rows
+
+
+def robot_overrides(algo: str, env_id: str, robot: str) -> dict[str, Any]:
+    """The entry's ``env_kwargs`` with another robot (an override replaces the whole ``env_kwargs``)."""
+    if robot == "kinematic":
+        return {}
+    return {"env_kwargs": {**load_hyperparams(algo, env_id).env_kwargs, "robot": robot}}
+
+
+def as_scores(scores: pd.DataFrame) -> pd.DataFrame:
+    """The success rates in the statistics' layout: each test set as an ``env``, each rate as a ``mean_return``."""
+    return scores.drop(columns="env").rename(columns={"test_set": "env", "success_rate": "mean_return"})
+
+
+def plot(scores: pd.DataFrame, path: Path, reps: int) -> pd.DataFrame:
+    """IQM and mean success rate per algorithm, one panel per test set, with 95% CIs."""
+    table = as_scores(scores)
+    performance = final_performance(table, reps=reps)
+    plot_final_performance(performance, str(path))
+    return performance
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--env", default="sb3_adc/LidarObstacleCourse-v1", help="the procedural environment id")
+    parser.add_argument("--robot", choices=["kinematic", "wheeled"], default="kinematic", help="robot model")
+    parser.add_argument("--algos", nargs="+", choices=ALGOS, default=ALGOS)
+    parser.add_argument("--workers", type=int, default=1, help="parallel runs and scorings")
+    parser.add_argument("--course-episodes", type=int, default=10, help="jittered episodes per course file")
+    parser.add_argument("--reps", type=int, default=5000, help="bootstrap replications")
+    parser.add_argument("--quick", action="store_true", help="smoke run: 2 seeds, 600 steps, 3 layouts, 1 course")
+    args = parser.parse_args()
+    if args.workers < 1 or args.course_episodes < 1 or args.reps < 1:
+        parser.error("--workers, --course-episodes and --reps must be >= 1")
+    th.set_num_threads(1)
+    name = args.env.split("/")[-1] + ("" if args.robot == "kinematic" else f"_{args.robot}") + ("_quick" if args.quick else "")
+    seeds, n_timesteps, n_layouts, reps = SEEDS, None, len(range(*TEST_LAYOUT_SEEDS)), args.reps
+    courses = sorted(path.stem for path in COURSES_DIR.glob("*.yml"))
+    if args.quick:
+        seeds, n_timesteps, n_layouts, courses, reps = seeds[:2], 600, 3, courses[:1], 200
+    folder = RUNS_DIR / name
+    output = RESULTS_DIR / name
+    output.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    finals = []
+    for algo in args.algos:
+        settings = BenchmarkSettings(
+            algos=[algo],
+            env_ids=[args.env],
+            seeds=seeds,
+            log_folder=str(folder / algo),
+            n_timesteps=n_timesteps,
+            overrides=robot_overrides(algo, args.env, args.robot),
+            eval_episodes=5,
+            final_eval_episodes=20,
+            device="cpu",
+        )
+        result = run_benchmark(settings, workers=args.workers, report=report)
+        if result.failures:
+            raise SystemExit(f"{len(result.failures)} runs of {algo} failed; re-run to retry them")
+        finals.append(pd.read_csv(result.tables[FINAL_CSV]))
+    training_s = time.perf_counter() - start
+    pd.concat(finals, ignore_index=True).to_csv(output / FINAL_CSV, index=False)
+    jobs = [
+        (
+            RunSpec(algo, args.env, seed).run_dir(str(folder / algo)),
+            algo,
+            args.env,
+            seed,
+            courses,
+            args.course_episodes,
+            n_layouts,
+        )
+        for algo in args.algos
+        for seed in seeds
+    ]
+    start = time.perf_counter()
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        rows = [row for rows in pool.map(score_run, *zip(*jobs, strict=True)) for row in rows]
+    scoring_s = time.perf_counter() - start
+    scores = pd.DataFrame(rows)
+    scores.to_csv(output / "success.csv", index=False)
+    figure = output / "success_rates.png"
+    performance = plot(scores, figure, reps)
+    performance.rename(columns={"env": "test_set"}).to_csv(output / "success_rates.csv", index=False)
+    table = as_scores(scores)
+    improvement = probability_of_improvement(table, reps=reps)
+    improvement.to_csv(output / "probability_of_improvement.csv", index=False)
+    if not args.quick:
+        DOCS_STATIC.mkdir(parents=True, exist_ok=True)
+        os.replace(figure, DOCS_STATIC / f"procedural_generalisation_{name}.png")
+    lines = ["| test set | algorithm | runs | success rate IQM [95% CI] | mean [95% CI] |", "|---|---|---:|---|---|"]
+    for row in performance.itertuples(index=False):
+        lines.append(
+            f"| {row.env} | {row.algo} | {row.n_runs} | {row.iqm:.2f} [{row.iqm_ci_low:.2f}, {row.iqm_ci_high:.2f}] "
+            f"| {row.mean:.2f} [{row.mean_ci_low:.2f}, {row.mean_ci_high:.2f}] |"
+        )
+    (output / "success_rates.md").write_text("\n".join(lines) + "\n")
+    metadata = {
+        "env": args.env,
+        "robot": args.robot,
+        "algos": args.algos,
+        "seeds": seeds,
+        "n_timesteps": n_timesteps or "each entry's n_timesteps",
+        "hyperparams": "shipped (hyperparams/{algo}.yml)",
+        "held_out_layouts": [TEST_LAYOUT_SEEDS[0], TEST_LAYOUT_SEEDS[0] + n_layouts - 1],
+        "courses": courses,
+        "course_episodes": args.course_episodes,
+        "course_start_jitter": COURSE_JITTER,
+        "training_wall_time_s": round(training_s, 1),
+        "scoring_wall_time_s": round(scoring_s, 1),
+        "workers": args.workers,
+        "bootstrap_reps": reps,
+        "sb3_adc": sb3_adc.__version__,
+        "stable_baselines3": stable_baselines3.__version__,
+        "torch": th.__version__,
+        "python": platform.python_version(),
+        "cpu_count": os.cpu_count(),
+    }
+    (output / "metadata.json").write_text(json.dumps(metadata, indent=2) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
