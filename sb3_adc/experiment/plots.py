@@ -100,6 +100,27 @@ def _grid(n_panels: int, rows_per_panel: int = 1) -> tuple[Figure, list[Axes]]:
     return figure, list(axes.flat)
 
 
+def _plot_mean_curves(curves: pd.DataFrame, path: str, x: str, xlabel: str, ylabel: str, title: str) -> str:
+    """One panel per environment: the mean across runs against column ``x``, with its 95% CI, per algorithm."""
+    envs = sorted(curves["env"].unique())
+    colors = _colors(list(curves["algo"].unique()))
+    figure, axes = _grid(len(envs))
+    for ax, env in zip(axes, envs, strict=False):
+        for algo, group in curves[curves["env"] == env].groupby("algo", sort=True):
+            color = colors[str(algo)]
+            runs = int(group["n_runs"].iloc[0])
+            ax.plot(group[x], group["mean"], color=color, label=f"{display_name(str(algo))} ({runs} runs)")
+            ax.fill_between(group[x], group["mean_ci_low"], group["mean_ci_high"], color=color, alpha=0.2)
+        ax.set(title=env, xlabel=xlabel, ylabel=ylabel)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize="small")
+    for ax in axes[len(envs) :]:
+        ax.set_visible(False)
+    figure.suptitle(title, fontsize="medium")
+    figure.savefig(path, dpi=120)
+    return path
+
+
 def plot_learning_curves(curves: pd.DataFrame, path: str, title: str = "") -> str:
     """
     One panel per environment: mean evaluation return across runs, with its 95% bootstrap CI, per algorithm.
@@ -108,23 +129,8 @@ def plot_learning_curves(curves: pd.DataFrame, path: str, title: str = "") -> st
     :param path: The PNG file
     :param title: The figure's title
     """
-    envs = sorted(curves["env"].unique())
-    colors = _colors(list(curves["algo"].unique()))
-    figure, axes = _grid(len(envs))
-    for ax, env in zip(axes, envs, strict=False):
-        for algo, group in curves[curves["env"] == env].groupby("algo", sort=True):
-            color = colors[str(algo)]
-            runs = int(group["n_runs"].iloc[0])
-            ax.plot(group["timesteps"], group["mean"], color=color, label=f"{display_name(str(algo))} ({runs} runs)")
-            ax.fill_between(group["timesteps"], group["mean_ci_low"], group["mean_ci_high"], color=color, alpha=0.2)
-        ax.set(title=env, xlabel="timesteps", ylabel="evaluation return")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize="small")
-    for ax in axes[len(envs) :]:
-        ax.set_visible(False)
-    figure.suptitle(title or "Mean evaluation return across runs (95% bootstrap CI)", fontsize="medium")
-    figure.savefig(path, dpi=120)
-    return path
+    title = title or "Mean evaluation return across runs (95% bootstrap CI)"
+    return _plot_mean_curves(curves, path, "timesteps", "timesteps", "evaluation return", title)
 
 
 def plot_wallclock_curves(curves: pd.DataFrame, path: str) -> str:
@@ -135,23 +141,14 @@ def plot_wallclock_curves(curves: pd.DataFrame, path: str) -> str:
     :param curves: The output of :func:`~sb3_adc.experiment.statistics.wallclock_curves`
     :param path: The PNG file
     """
-    envs = sorted(curves["env"].unique())
-    colors = _colors(list(curves["algo"].unique()))
-    figure, axes = _grid(len(envs))
-    for ax, env in zip(axes, envs, strict=False):
-        for algo, group in curves[curves["env"] == env].groupby("algo", sort=True):
-            color = colors[str(algo)]
-            runs = int(group["n_runs"].iloc[0])
-            ax.plot(group["wall_time_s"], group["mean"], color=color, label=f"{display_name(str(algo))} ({runs} runs)")
-            ax.fill_between(group["wall_time_s"], group["mean_ci_low"], group["mean_ci_high"], color=color, alpha=0.2)
-        ax.set(title=env, xlabel="wall-clock time of training (s)", ylabel="latest evaluation return")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize="small")
-    for ax in axes[len(envs) :]:
-        ax.set_visible(False)
-    figure.suptitle("Mean evaluation return against wall-clock time (95% bootstrap CI)", fontsize="medium")
-    figure.savefig(path, dpi=120)
-    return path
+    return _plot_mean_curves(
+        curves,
+        path,
+        "wall_time_s",
+        "wall-clock time of training (s)",
+        "latest evaluation return",
+        "Mean evaluation return against wall-clock time (95% bootstrap CI)",
+    )
 
 
 def plot_reward_variance(curves: pd.DataFrame, episodes: pd.DataFrame | None, path: str, window: int = 10) -> str:
