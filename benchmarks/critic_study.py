@@ -116,6 +116,8 @@ CONFIGS: dict[str, tuple[str, dict[str, Any], Path | None]] = {
     # The paper's Table 1 on Pendulum (Figures 4-5): ADC with its critic, DDPG, the vanilla actor-critic and the
     # dueling DQN over 25 actions.
     **{f"{algo}_table1": (algo, {}, PAPER) for algo in ("adc", "ddpg", "vanilla_ac", "dqn")},
+    # The paper's Table 2 on the navigation task (Figures 7-8): ADC with its critic, and DDPG.
+    **{f"{algo}_table2": (algo, {}, PAPER) for algo in ("adc", "ddpg")},
 }
 
 #: Grid name -> (environments, seeds, default configurations).
@@ -214,6 +216,21 @@ GRIDS: dict[str, tuple[list[str], list[int], list[str]]] = {
         list(range(1000, 1010)),
         ["adc_table1", "ddpg_table1", "vanilla_ac_table1", "dqn_table1"],
     ),
+    # The paper's Figures 7-8 with its Table 2 on the paper-style course, on fresh seeds, for the entries' budget
+    # (30 000 steps, 60 episodes of 500 steps; the paper trained 3500 episodes).
+    "lidar_paper": (
+        ["sb3_adc/LidarObstacleCourse-v0"],
+        list(range(1000, 1010)),
+        ["adc_table2", "ddpg_table2"],
+    ),
+    # The shipped ADC entry against DDPG's once more after the default critic's two output layers became one
+    # (same function, initialisation and update rule; float rounding differs, so the runs are new): returns and
+    # wall-clock time in the same run, in a runs folder of its own.
+    "cost": (
+        ["sb3_adc/NoisyPendulum-v1"],
+        list(range(1000, 1010)),
+        ["adc_shipped", "ddpg_shipped"],
+    ),
     # The shipped entries of the noisy Pendulum again, now that the tables hold each episode's wall-clock time:
     # learning curves against seconds of training, the cost side of the default critic (the runs folder is the
     # tuned grid's, so on a machine that kept the shipped grid's runs nothing is retrained).
@@ -228,7 +245,13 @@ GRIDS: dict[str, tuple[list[str], list[int], list[str]]] = {
 SHARED_RUNS = {"shipped": "tuned", "lidar_plain": "lidar", "wallclock": "tuned", "recipe": "warmup", "intervals": "tuned"}
 
 #: Grid -> budget of every run, when it is not ``DEFAULT_BUDGET`` (``None``: each entry's ``n_timesteps``).
-BUDGETS: dict[str, int | None] = {"lidar": None, "lidar_plain": None, "intervals_paper": 60_000, "pendulum_paper": 60_000}
+BUDGETS: dict[str, int | None] = {
+    "lidar": None,
+    "lidar_plain": None,
+    "lidar_paper": None,
+    "intervals_paper": 60_000,
+    "pendulum_paper": 60_000,
+}
 DEFAULT_BUDGET = 20_000
 
 #: Grid -> the configuration whose improvement over the others is measured.
@@ -246,6 +269,8 @@ REFERENCES = {
     "intervals": "adc_shipped",
     "intervals_paper": "adc_table3_n100",
     "pendulum_paper": "adc_table1",
+    "lidar_paper": "adc_table2",
+    "cost": "adc_shipped",
 }
 
 #: Grid -> the evaluation return a run must stay at or above to count as converged (the paper's "converges at

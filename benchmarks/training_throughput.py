@@ -12,6 +12,8 @@ Usage::
 
     python benchmarks/training_throughput.py            # full run, writes benchmarks/results/
     python benchmarks/training_throughput.py --quick    # a smoke run
+    python benchmarks/training_throughput.py --n-intervals 20 60 100 140 --designs paper legendre
+                                                        # the paper's setting at each interval count
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ import platform
 import statistics
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -38,7 +40,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 
 import sb3_adc
 from sb3_adc import ADC
-from sb3_adc.adc.policies import CRITIC_DESIGNS, DEFAULT_CRITIC_DESIGN
+from sb3_adc.adc.policies import CRITIC_DESIGNS, DEFAULT_BASIS_DEGREE, DEFAULT_CRITIC_DESIGN, validate_critic_options
 
 RESULTS_DIR = Path(__file__).parent / "results"
 
@@ -200,9 +202,10 @@ def plot(rows: list[dict[str, Any]], models: list[str], path: Path) -> None:
     ax.set_xlabel("training throughput (env steps/s, one update per step; log scale)")
     ax.set_title(f"{repeats} repeats per point, rotating order; dots: each repeat", fontsize="small")
     ax.grid(alpha=0.3, axis="x", which="both")
-    ax.legend(loc="upper left", fontsize="x-small")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    # Below the figure (kept by the tight bounding box), where it covers neither the points nor the ratio labels.
+    fig.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=2, fontsize="x-small")
+    fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)
 
 
@@ -223,20 +226,38 @@ def main() -> None:
     parser.add_argument(
         "--designs", nargs="+", choices=CRITIC_DESIGNS, default=list(CRITIC_DESIGNS), help="ADC critic designs (default: all)"
     )
+    parser.add_argument(
+        "--n-intervals",
+        type=int,
+        nargs="+",
+        metavar="N",
+        help="time the paper's Pendulum setting (30 units, batch 32) at each of these interval counts instead of the "
+        "network sizes; writes training_throughput_intervals.*",
+    )
     parser.add_argument("--quick", action="store_true", help="a short smoke run; writes nothing")
     parser.add_argument("--replot", action="store_true", help="redraw the figure from the results' JSON, without timing")
     parser.add_argument("--output", type=Path, default=RESULTS_DIR, help="results folder (default: benchmarks/results)")
     args = parser.parse_args()
 
+    stem = "training_throughput_intervals" if args.n_intervals else "training_throughput"
     if args.replot:
-        saved = json.loads((args.output / "training_throughput.json").read_text())
-        plot(saved["rows"], ["DDPG", *saved["designs"]], args.output / "training_throughput.png")
+        saved = json.loads((args.output / f"{stem}.json").read_text())
+        plot(saved["rows"], ["DDPG", *saved["designs"]], args.output / f"{stem}.png")
         return
+    settings = SETTINGS
+    if args.n_intervals:
+        for n in args.n_intervals:
+            try:
+                validate_critic_options(DEFAULT_CRITIC_DESIGN, n, "mean", "none", DEFAULT_BASIS_DEGREE, 1)
+            except ValueError as error:
+                parser.error(f"--n-intervals: {error}")
+        base = SETTINGS[-1]
+        settings = [replace(base, name=f"{base.name}, {n} intervals", n_intervals=n) for n in args.n_intervals]
     th.set_num_threads(args.threads)
     steps, warmup, repeats = (300, 300, 1) if args.quick else (args.steps, args.warmup, args.repeats)
     print(f"Training throughput on {args.env}: {steps} timed steps after {warmup}, {repeats} repeats, {args.clock} clock")
     models = ["DDPG", *args.designs]
-    settings = SETTINGS[-1:] if args.quick else SETTINGS
+    settings = settings[-1:] if args.quick else settings
     rows = run(args.env, steps, warmup, repeats, CLOCKS[args.clock], models, settings)
     table = print_table(rows, models)
     if args.quick:
@@ -259,11 +280,11 @@ def main() -> None:
         versions=dict(sb3_adc=sb3_adc.__version__, stable_baselines3=stable_baselines3.__version__, torch=th.__version__),
         rows=rows,
     )
-    (args.output / "training_throughput.json").write_text(json.dumps(result, indent=2) + "\n")
-    (args.output / "training_throughput.md").write_text(table + "\n")
-    write_csv(rows, models, args.output / "training_throughput.csv")
-    plot(rows, models, args.output / "training_throughput.png")
-    print(f"wrote {args.output}/training_throughput.{{json,md,csv,png}}")
+    (args.output / f"{stem}.json").write_text(json.dumps(result, indent=2) + "\n")
+    (args.output / f"{stem}.md").write_text(table + "\n")
+    write_csv(rows, models, args.output / f"{stem}.csv")
+    plot(rows, models, args.output / f"{stem}.png")
+    print(f"wrote {args.output}/{stem}.{{json,md,csv,png}}")
 
 
 if __name__ == "__main__":

@@ -32,6 +32,7 @@ import torch as th
 from numpy.polynomial import legendre
 from stable_baselines3.common.torch_layers import create_mlp
 from torch import nn
+from torch.nn import functional as F
 
 from sb3_adc.adc.intervals import Aggregation, Interpolation, UniformIntervalPartition, aggregate
 
@@ -168,6 +169,7 @@ class LegendreAdvantageNetwork(nn.Module):
     centred_basis_offset: th.Tensor
     exponents: th.Tensor
     monomial_matrix: th.Tensor
+    q_weight_matrix: th.Tensor
 
     def __init__(
         self,
@@ -186,8 +188,21 @@ class LegendreAdvantageNetwork(nn.Module):
         self.basis_degree = basis_degree
         self.trunk = nn.Sequential(*create_mlp(features_dim, -1, net_arch, activation_fn))
         trunk_dim = net_arch[-1] if net_arch else features_dim
-        self.value_head = _mlp(trunk_dim, 1, value_net_arch, activation_fn)
-        self.coefficient_head = _mlp(trunk_dim, action_dim * basis_degree, advantage_net_arch, activation_fn)
+        self.fused_heads = not value_net_arch and not advantage_net_arch
+        if self.fused_heads:
+            # Two single-layer heads are one layer with outputs [V | c]: the same function and, Adam being
+            # elementwise, the same update rule, but one weight and one bias for the optimiser and the target
+            # update instead of two of each, whose per-tensor overhead dominates a small critic's update
+            # (benchmarks/training_throughput.py). The layer is filled from the two heads, drawn as before, so a
+            # seed gives the same initial critic as separate heads (training then differs by float rounding).
+            value_head, coefficient_head = nn.Linear(trunk_dim, 1), nn.Linear(trunk_dim, action_dim * basis_degree)
+            self.heads = nn.utils.skip_init(nn.Linear, trunk_dim, 1 + action_dim * basis_degree)
+            with th.no_grad():
+                self.heads.weight.copy_(th.cat([value_head.weight, coefficient_head.weight]))
+                self.heads.bias.copy_(th.cat([value_head.bias, coefficient_head.bias]))
+        else:
+            self.value_head = _mlp(trunk_dim, 1, value_net_arch, activation_fn)
+            self.coefficient_head = _mlp(trunk_dim, action_dim * basis_degree, advantage_net_arch, activation_fn)
         centres = UniformIntervalPartition(n_intervals).centres
         self.register_buffer("basis_at_centres", legendre_basis(centres, basis_degree).T.contiguous(), persistent=False)
         # Derived constants, not saved: models saved before them load unchanged.
@@ -196,6 +211,10 @@ class LegendreAdvantageNetwork(nn.Module):
         self.register_buffer("monomial_matrix", legendre_monomial_matrix(basis_degree), persistent=False)
         self.register_buffer("centred_basis_offset", th.zeros(basis_degree), persistent=False)
         self.centred_basis_offset = self._basis(centres).mean(dim=0)
+        # [1 | a_1, .., a_1^K | a_2, ..] @ q_weight_matrix = [1 | centred basis of a_1 | of a_2 ..] (monomial path).
+        q_weight_matrix = th.block_diag(th.ones(1, 1), *[self.monomial_matrix] * action_dim)
+        q_weight_matrix[0, 1:] = -self.centred_basis_offset.repeat(action_dim)
+        self.register_buffer("q_weight_matrix", q_weight_matrix, persistent=False)
 
     def _basis(self, x: th.Tensor) -> th.Tensor:
         """The basis at ``x`` ``(*x.shape, basis_degree)``, up to a constant per polynomial (see
@@ -208,15 +227,21 @@ class LegendreAdvantageNetwork(nn.Module):
         """
         ``P_k(a_d) - mean_z P_k(centre_z)`` for every action dimension ``d`` and degree ``k``.
 
-        :param actions: Scaled actions ``(batch, action_dim)``, clamped to ``[-1, 1]``
+        :param actions: Scaled actions ``(batch, action_dim)`` in ``[-1, 1]``, as SB3 gives them (the actor's
+            ``tanh``, clipped replay actions, clipped target smoothing); the polynomial extrapolates beyond. Not
+            clamped here: a clamp would cost a twentieth of a small critic's update for nothing.
         :return: ``(batch, action_dim, basis_degree)``
         """
-        return self._basis(actions.clamp(-1.0, 1.0)) - self.centred_basis_offset
+        return self._basis(actions) - self.centred_basis_offset
 
     def _heads(self, features: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
         hidden = self.trunk(features)
-        coefficients = self.coefficient_head(hidden).view(-1, self.action_dim, self.basis_degree)
-        return self.value_head(hidden), coefficients
+        if self.fused_heads:
+            outputs = self.heads(hidden)
+            value, coefficients = outputs[:, :1], outputs[:, 1:]
+        else:
+            value, coefficients = self.value_head(hidden), self.coefficient_head(hidden)
+        return value, coefficients.reshape(-1, self.action_dim, self.basis_degree)
 
     def forward(self, features: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
         """
@@ -237,12 +262,18 @@ class LegendreAdvantageNetwork(nn.Module):
     ) -> th.Tensor:
         """``Q(s, a) = V(s) + A(s, a) - mean_z A(s, centre_z)`` (``max`` for Eq. 11). Parameters as in
         :meth:`forward`; ``partition`` and ``interpolation`` are not used. :return: ``(batch, 1)``"""
+        # The mean over the centres is linear in the coefficients: centring the basis once (a constant) gives
+        # A(s, a) - mean_z A(s, centre_z) without evaluating every centre.
+        if aggregation == "mean" and self.fused_heads and self.monomials:
+            # Q is the dot product of the layer's outputs [V | c] with [1 | centred basis], and that vector is
+            # [1 | powers of the actions] times a constant matrix: a few tensor operations in all, and no slicing
+            # of the outputs, whose backward would write into zeroed copies of them.
+            powers = F.pad(actions.unsqueeze(-1).pow(self.exponents).flatten(1), (1, 0), value=1.0)
+            return (self.heads(self.trunk(features)) * (powers @ self.q_weight_matrix)).sum(dim=1, keepdim=True)
         value, coefficients = self._heads(features)
         if aggregation == "mean":
-            # The mean over the centres is linear in the coefficients: centring the basis once (a constant) gives
-            # A(s, a) - mean_z A(s, centre_z) without evaluating every centre.
             return value + (coefficients * self.centred_basis(actions)).flatten(1).sum(dim=1, keepdim=True)
-        selected = (coefficients * legendre_basis(actions.clamp(-1.0, 1.0), self.basis_degree)).sum(dim=-1)
+        selected = (coefficients * legendre_basis(actions, self.basis_degree)).sum(dim=-1)
         return value + _centre(selected, coefficients @ self.basis_at_centres, aggregation)
 
 

@@ -5,10 +5,13 @@ import pytest
 import torch as th
 from gymnasium import spaces
 from numpy.polynomial import legendre
+from stable_baselines3.common.torch_layers import create_mlp
 from stable_baselines3.common.utils import ConstantSchedule
+from stable_baselines3.td3.policies import TD3Policy
+from torch import nn
 
 from sb3_adc import ADC
-from sb3_adc.adc.designs import MONOMIAL_MAX_DEGREE, legendre_basis, legendre_monomial_matrix
+from sb3_adc.adc.designs import MONOMIAL_MAX_DEGREE, LegendreAdvantageNetwork, legendre_basis, legendre_monomial_matrix
 from sb3_adc.adc.policies import CRITIC_DESIGNS, ADCPolicy, validate_critic_options
 from sb3_adc.config import HyperparamsError, resolve_entry
 
@@ -74,11 +77,23 @@ def test_paper_value_stream_depends_on_the_action():
 
 
 # Degrees 3 and 8 take the monomial path of the centred basis, 12 Bonnet's recursion (MONOMIAL_MAX_DEGREE).
+# Without hidden head layers the value and the coefficients are the outputs of one layer; with them, two heads.
 @pytest.mark.parametrize("basis_degree", [3, MONOMIAL_MAX_DEGREE, 12])
 @pytest.mark.parametrize("aggregation", ["mean", "max"])
 @pytest.mark.parametrize("action_dim", [1, 2])
-def test_legendre_q_is_value_plus_polynomial_advantage_centred_over_the_centres(action_dim, aggregation, basis_degree):
-    critic = make_critic("legendre", action_dim=action_dim, aggregation=aggregation, basis_degree=basis_degree)
+@pytest.mark.parametrize("head_arch", [None, [8]])
+def test_legendre_q_is_value_plus_polynomial_advantage_centred_over_the_centres(
+    action_dim, aggregation, basis_degree, head_arch
+):
+    critic = make_critic(
+        "legendre",
+        action_dim=action_dim,
+        aggregation=aggregation,
+        basis_degree=basis_degree,
+        value_net_arch=head_arch,
+        advantage_net_arch=head_arch,
+    )
+    assert critic.q_networks[0].fused_heads == (head_arch is None)
     network = critic.q_networks[0]
     obs, actions = batch(action_dim)
     features = critic.extract_features(obs, critic.features_extractor)
@@ -101,6 +116,28 @@ def test_legendre_q_is_value_plus_polynomial_advantage_centred_over_the_centres(
         rtol=1e-5,
         atol=1e-6,
     )
+
+
+def test_legendre_fused_heads_draw_the_initial_critic_of_two_separate_heads():
+    # One layer holds the value head's row, then the coefficient head's, drawn in that order as two separate
+    # layers would be: a seed gives the same initial critic either way.
+    th.manual_seed(0)
+    network = LegendreAdvantageNetwork(3, 2, 10, [16], [], [], nn.ReLU, basis_degree=4)
+    th.manual_seed(0)
+    trunk = nn.Sequential(*create_mlp(3, -1, [16], nn.ReLU))
+    value_head, coefficient_head = nn.Linear(16, 1), nn.Linear(16, 2 * 4)
+    assert th.equal(network.trunk[0].weight, trunk[0].weight)
+    assert th.equal(network.heads.weight, th.cat([value_head.weight, coefficient_head.weight]))
+    assert th.equal(network.heads.bias, th.cat([value_head.bias, coefficient_head.bias]))
+
+
+def test_legendre_critic_has_as_many_parameter_tensors_as_ddpg_critic():
+    # The optimiser and the target update cost per parameter tensor: the default critic matches DDPG's count.
+    observation_space = spaces.Box(-1.0, 1.0, (3,), np.float32)
+    action_space = spaces.Box(-2.0, 2.0, (2,), np.float32)
+    ddpg = TD3Policy(observation_space, action_space, ConstantSchedule(1e-3), net_arch=[16, 16], n_critics=1)
+    adc = make_critic("legendre", action_dim=2, net_arch=[16, 16])
+    assert len(list(adc.parameters())) == len(list(ddpg.critic.parameters())) == 6
 
 
 @pytest.mark.parametrize("degree", range(1, MONOMIAL_MAX_DEGREE + 1))
