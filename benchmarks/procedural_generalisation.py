@@ -22,6 +22,7 @@ Usage::
     python benchmarks/procedural_generalisation.py --env sb3_adc/LidarObstacleCourseNoisy-v1 --workers 2
     python benchmarks/procedural_generalisation.py --robot wheeled --workers 2   # the robot with dynamics
     python benchmarks/procedural_generalisation.py --quick                     # a smoke run
+    python benchmarks/procedural_generalisation.py --replot                    # redraw the figure, no training
 """
 
 from __future__ import annotations
@@ -131,7 +132,7 @@ def plot(scores: pd.DataFrame, path: Path, reps: int) -> pd.DataFrame:
     """IQM and mean success rate per algorithm, one panel per test set, with 95% CIs."""
     table = as_scores(scores)
     performance = final_performance(table, reps=reps)
-    plot_final_performance(performance, str(path))
+    plot_final_performance(performance, str(path), quantity="success rate (share of collision-free episodes)")
     return performance
 
 
@@ -144,6 +145,7 @@ def main() -> None:
     parser.add_argument("--course-episodes", type=int, default=10, help="jittered episodes per course file")
     parser.add_argument("--reps", type=int, default=5000, help="bootstrap replications")
     parser.add_argument("--quick", action="store_true", help="smoke run: 2 seeds, 600 steps, 3 layouts, 1 course")
+    parser.add_argument("--replot", action="store_true", help="redraw the figure from the committed success.csv")
     args = parser.parse_args()
     if args.workers < 1 or args.course_episodes < 1 or args.reps < 1:
         parser.error("--workers, --course-episodes and --reps must be >= 1")
@@ -155,6 +157,11 @@ def main() -> None:
         seeds, n_timesteps, n_layouts, courses, reps = seeds[:2], 600, 3, courses[:1], 200
     folder = RUNS_DIR / name
     output = RESULTS_DIR / name
+    if args.replot:
+        figure = DOCS_STATIC / f"procedural_generalisation_{name}.png"
+        plot(pd.read_csv(output / "success.csv"), figure, reps)
+        print(f"wrote {figure}")
+        return
     output.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     finals = []

@@ -201,13 +201,14 @@ def plot_reward_variance(curves: pd.DataFrame, episodes: pd.DataFrame | None, pa
     return path
 
 
-def plot_final_performance(performance: pd.DataFrame, path: str) -> str:
+def plot_final_performance(performance: pd.DataFrame, path: str, quantity: str = "final return") -> str:
     """
     One panel per environment: IQM and mean of the final returns per algorithm, with 95% CIs, on one x range
     for all panels (so that panels compare at a glance).
 
     :param performance: The output of :func:`~sb3_adc.experiment.statistics.final_performance`
     :param path: The PNG file
+    :param quantity: What the values are, for the axis labels and the title (e.g. ``"success rate"``)
     """
     envs = sorted(performance["env"].unique())
     colors = _colors(list(performance["algo"].unique()))
@@ -231,12 +232,12 @@ def plot_final_performance(performance: pd.DataFrame, path: str) -> str:
                     capsize=3,
                 )
         ax.set_yticks(positions, [display_name(algo) for algo in table["algo"]])
-        ax.set(title=env, xlabel="final return (95% CI)", xlim=limits)
+        ax.set(title=env, xlabel=f"{quantity} (95% CI)", xlim=limits)
         ax.grid(alpha=0.3, axis="x")
         ax.legend(handles=_METRIC_MARKERS, fontsize="small")
     for ax in axes[len(envs) :]:
         ax.set_visible(False)
-    figure.suptitle("Final return: IQM (o) and mean (s), 95% stratified-bootstrap CIs", fontsize="medium")
+    figure.suptitle(f"{quantity.capitalize()}: IQM (o) and mean (s), 95% stratified-bootstrap CIs", fontsize="medium")
     figure.savefig(path, dpi=120)
     return path
 
