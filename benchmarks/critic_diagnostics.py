@@ -16,7 +16,7 @@ records with 95% stratified-bootstrap CIs over runs (``summary_ci.csv``), and th
 Usage::
 
     python benchmarks/critic_diagnostics.py --workers 2
-    python benchmarks/critic_diagnostics.py --configs adc_paper adc_shipped ddpg_shipped \
+    python benchmarks/critic_diagnostics.py --configs adc_paper adc_legendre ddpg \
         --seeds 1000 1001 1002 1003 1004 1005 1006 1007 1008 1009 --tag fresh --workers 2
     python benchmarks/critic_diagnostics.py --quick
 """

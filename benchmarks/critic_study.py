@@ -217,7 +217,7 @@ GRIDS: dict[str, tuple[list[str], list[int], list[str]]] = {
         ["adc_table1", "ddpg_table1", "vanilla_ac_table1", "dqn_table1"],
     ),
     # The paper's Figures 7-8 with its Table 2 on the paper-style course, on fresh seeds, for the entries' budget
-    # (30 000 steps, 60 episodes of 500 steps; the paper trained 3500 episodes).
+    # (30 000 steps; an episode lasts up to 500 steps, less after a collision; the paper trained 3500 episodes).
     "lidar_paper": (
         ["sb3_adc/LidarObstacleCourse-v0"],
         list(range(1000, 1010)),
