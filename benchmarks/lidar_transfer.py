@@ -7,8 +7,9 @@ hyperparameters of ``hyperparams/<algo>.yml`` (or ``--conf-file``), then evaluat
 2. on the training course and on every unseen layout, ``--episodes`` episodes each with a jittered start
    pose (0.1 m along x and y, 10 degrees): collision-free episodes out of N, and the laps driven.
 
-Training shows a progress bar and checkpoints (model and replay buffer) every ``--eval-freq`` steps in
-``--run-dir``; running the script again resumes from the last checkpoint. At each checkpoint the policy is
+Training runs on the engine (``sb3_adc.experiment.train``: the RL Zoo's ``ExperimentManager``), which shows a
+progress bar and checkpoints (model and replay buffer) every ``--eval-freq`` steps in ``--run-dir``; running the
+script again resumes from the last checkpoint. At each checkpoint the policy is
 evaluated on the training course (``--eval-episodes`` jittered episodes); the best of these evaluations is
 kept as ``best_model.zip``. The unseen layouts are never used to select a model. Both the best and the final
 model are evaluated.
@@ -43,10 +44,11 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
 import sb3_adc
+from sb3_adc.common.atomic import atomic_path, write_atomically
 from sb3_adc.config.loader import load_hyperparams
+from sb3_adc.experiment import RunLayout, TrainSettings, resume, train
 from sb3_adc_envs.lidar_course import Course, geometry, load_course
 from sb3_adc_envs.lidar_course.env import LidarObstacleCourseEnv
 
@@ -166,13 +168,13 @@ def summarise(episodes: list[Episode]) -> dict[str, Any]:
 
 
 # ------------------------------------------------------------------------------------------------- training
-class TrainingCourseCheckpoint(BaseCallback):
+class TrainingCourseEvaluation(BaseCallback):
     """
-    Every ``freq`` steps: evaluate on the training course, append to ``learning_curve.csv``, keep the best
-    model, and checkpoint the model with its replay buffer (so that an interrupted run resumes).
+    Every ``freq`` steps: evaluate on the training course, append to ``learning_curve.csv`` and keep the best
+    model (the engine saves the checkpoints, with the replay buffer, at the same timesteps).
 
     :param run_dir: Folder of the run
-    :param freq: Steps between evaluations/checkpoints
+    :param freq: Steps between evaluations
     :param n_episodes: Jittered evaluation episodes
     """
 
@@ -189,11 +191,11 @@ class TrainingCourseCheckpoint(BaseCallback):
 
     def _on_step(self) -> bool:
         if self.num_timesteps % self.freq == 0:
-            self.checkpoint()
+            self.evaluate()
         return True
 
-    def checkpoint(self) -> None:
-        """Evaluate, log, keep the best model and save the checkpoint."""
+    def evaluate(self) -> None:
+        """Evaluate, log and keep the best model."""
         runs = [run_episode(self.model, TRAINING_COURSE, seed, True, self.centre) for seed in range(self.n_episodes)]
         free = sum(not e.collision for e in runs)
         score = free + float(np.mean([e.steps for e in runs])) / MAX_STEPS  # collision-free first, then length
@@ -214,43 +216,43 @@ class TrainingCourseCheckpoint(BaseCallback):
             writer.writerow(row)
         if score >= self.state["best"]:  # ties go to the later, longer-trained model
             self.state.update(best=score, best_timesteps=self.num_timesteps)
-            self.model.save(self.run_dir / "best_model")
-        self.model.save(self.run_dir / "checkpoint")
-        self.model.save_replay_buffer(self.run_dir / "checkpoint_replay_buffer")  # type: ignore[attr-defined]
-        self.state_path.write_text(json.dumps(self.state, indent=2))
+            with atomic_path(str(self.run_dir / "best_model.zip")) as temporary:
+                self.model.save(temporary)
+        text = json.dumps(self.state, indent=2)
+        write_atomically(str(self.state_path), lambda stream: stream.write(text))
 
 
-def train(args: argparse.Namespace, run_dir: Path) -> tuple[BaseAlgorithm, type[BaseAlgorithm]]:
-    """Train (or resume) and return the final model and the algorithm class."""
-    config = load_hyperparams(args.algo, ENV_ID, conf_file=args.conf_file, n_timesteps=args.n_timesteps)
-    algorithm = config.algorithm_class
-    env = config.wrap_env(gym.make(ENV_ID, **config.env_kwargs))
-    checkpoint = run_dir / "checkpoint.zip"
-    if checkpoint.exists():
-        model = algorithm.load(checkpoint, env=env, device="cpu")
-        model.load_replay_buffer(run_dir / "checkpoint_replay_buffer.pkl")  # type: ignore[attr-defined]
-        print(f"Resuming {run_dir} at {model.num_timesteps} of {config.n_timesteps} steps")
+def train_model(args: argparse.Namespace, run_dir: Path) -> tuple[BaseAlgorithm, type[BaseAlgorithm]]:
+    """
+    Train, or resume, through the engine (:func:`sb3_adc.experiment.train` and :func:`~sb3_adc.experiment.resume`,
+    in ``run_dir/run``): checkpoints with the replay buffer every ``--eval-freq`` steps; the engine's periodic
+    evaluation is off, since the model is selected on the training course (:class:`TrainingCourseEvaluation`).
+    Returns the final model and the algorithm class.
+    """
+    algorithm = load_hyperparams(args.algo, ENV_ID, conf_file=args.conf_file).algorithm_class
+    callback = TrainingCourseEvaluation(run_dir, args.eval_freq, args.eval_episodes)
+    engine_dir = run_dir / "run"
+    if Path(RunLayout(str(engine_dir), ENV_ID).args).is_file():
+        result = resume(str(engine_dir), n_timesteps=args.n_timesteps, callbacks=[callback])
     else:
-        model_kwargs = dict(config.model_kwargs)
-        policy = model_kwargs.pop("policy")
-        model = cast(type[OffPolicyAlgorithm], algorithm)(
-            policy,
-            env,
-            action_noise=config.make_action_noise(env.action_space),
+        settings = TrainSettings(
+            algo=args.algo,
+            env_id=ENV_ID,
             seed=args.seed,
+            conf_file=args.conf_file,
+            n_timesteps=args.n_timesteps,
+            log_folder=str(run_dir),
+            run_dir=str(engine_dir),
+            eval_freq=0,
+            save_freq=args.eval_freq,
+            keep_checkpoints=1,
+            final_eval_episodes=1,
             device="cpu",
-            **model_kwargs,
         )
-        (run_dir / "config.json").write_text(json.dumps(config.saved, indent=2, default=str))
-    remaining = config.n_timesteps - model.num_timesteps
-    if remaining > 0:
-        callback = TrainingCourseCheckpoint(run_dir, args.eval_freq, args.eval_episodes)
-        model.learn(remaining, callback=callback, reset_num_timesteps=False, progress_bar=True)
-    model.save(run_dir / "final_model")
-    return model, algorithm
+        result = train(settings, callbacks=[callback])
+    return algorithm.load(result.model_path, device="cpu"), algorithm
 
 
-# -------------------------------------------------------------------------------------------------- figures
 def plot_trajectories(episodes_by_model: dict[str, list[Episode]], title: str, path: Path) -> None:
     """
     One row per model, one panel per course: the walls and every jittered episode's path (blue without a
@@ -437,7 +439,7 @@ def main(argv: list[str] | None = None) -> int:
     run_dir = args.run_dir / tag
     run_dir.mkdir(parents=True, exist_ok=True)
     started = time.time()
-    final_model, algorithm = train(args, run_dir)
+    final_model, algorithm = train_model(args, run_dir)
     training_s = time.time() - started
 
     courses = [TRAINING_COURSE, *UNSEEN_COURSES]

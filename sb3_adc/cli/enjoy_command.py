@@ -40,6 +40,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--exp-id", type=int, default=0, help="run id (default: 0, the latest run)")
     parser.add_argument("--run-dir", help="the run's folder (instead of --algo, --env, --log-folder, --exp-id)")
     parser.add_argument("--model", choices=MODEL_CHOICES, default="final", help="which model of the run (default: final)")
+    # The RL Zoo's enjoy spellings, for `python -m sb3_adc.zoo enjoy`.
+    parser.add_argument("--load-best", dest="model", action="store_const", const="best", help="the same as --model best")
+    parser.add_argument(
+        "--load-last-checkpoint",
+        dest="model",
+        action="store_const",
+        const="last-checkpoint",
+        help="the same as --model last-checkpoint",
+    )
+    parser.add_argument("--no-render", action="store_true", help="accepted for the RL Zoo: nothing is shown on screen anyway")
+    parser.add_argument("--deterministic", action="store_true", help="accepted for the RL Zoo: actions are deterministic")
     parser.add_argument("-n", "--n-episodes", type=int, default=5, help="episodes to play (default: 5)")
     parser.add_argument("--seed", type=int, default=None, help="environment seed (default: that of the run's evaluations)")
     parser.add_argument("--stochastic", action="store_true", help="sample actions instead of deterministic ones")

@@ -6,8 +6,9 @@ and their statistics and plots (:mod:`~sb3_adc.experiment.plots`).
 
 from sb3_adc.experiment.evaluation import FinalEvaluation
 from sb3_adc.experiment.layout import RunLayout, env_name
+from sb3_adc.experiment.manager import RunInterrupted
 from sb3_adc.experiment.settings import TrainSettings
-from sb3_adc.experiment.training import RunInterrupted, TrainResult, find_run, resume, train
+from sb3_adc.experiment.training import TrainResult, find_run, resume, train
 
 __all__ = [
     "FinalEvaluation",

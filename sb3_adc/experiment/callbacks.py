@@ -12,13 +12,13 @@ import zipfile
 from dataclasses import dataclass, field
 
 import numpy as np
-from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
+from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 from stable_baselines3.common.save_util import load_from_pkl
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_adc.common.atomic import atomic_path, write_atomically
 from sb3_adc.experiment.divergence import check_finite_weights
-from sb3_adc.experiment.layout import Checkpoint, DamagedFileError, RunLayout
+from sb3_adc.experiment.layout import CHECKPOINT_PREFIX, Checkpoint, DamagedFileError, RunLayout
 
 
 @dataclass
@@ -145,11 +145,13 @@ class PeriodicEvalCallback(EvalCallback):
         return continue_training
 
 
-class CheckpointSaver(BaseCallback):
+class CheckpointSaver(CheckpointCallback):
     """
-    Save the model, its replay buffer and its ``VecNormalize`` statistics every ``every`` timesteps, keeping the
-    ``keep`` latest checkpoints. Give it after the evaluation callback: a checkpoint then includes the evaluation
-    of its timestep. Each file is written atomically, and a model whose weights are not finite is never saved.
+    SB3's ``CheckpointCallback`` with its file names (model, replay buffer and ``VecNormalize`` statistics), saving
+    every ``every`` timesteps rather than every ``save_freq`` calls (so a resumed run saves at the timesteps an
+    uninterrupted one would), each file atomically, and keeping the ``keep`` latest checkpoints. Give it after the
+    evaluation callback: a checkpoint then includes the evaluation of its timestep. A model whose weights are not
+    finite is never saved.
 
     :param layout: The run's paths
     :param every: Timesteps between checkpoints
@@ -157,18 +159,17 @@ class CheckpointSaver(BaseCallback):
     """
 
     def __init__(self, layout: RunLayout, every: int, keep: int):
-        super().__init__()
+        super().__init__(every, layout.run_dir, CHECKPOINT_PREFIX, save_replay_buffer=True, save_vecnormalize=True)
         self.layout = layout
-        self.every = every
         self.keep = keep
         self.next_checkpoint = every
 
     def _init_callback(self) -> None:
-        self.next_checkpoint = (self.model.num_timesteps // self.every + 1) * self.every
+        self.next_checkpoint = (self.model.num_timesteps // self.save_freq + 1) * self.save_freq
 
     def _on_step(self) -> bool:
         if self.num_timesteps >= self.next_checkpoint:
-            self.next_checkpoint = (self.num_timesteps // self.every + 1) * self.every
+            self.next_checkpoint = (self.num_timesteps // self.save_freq + 1) * self.save_freq
             self.save()
         return True
 
@@ -179,16 +180,17 @@ class CheckpointSaver(BaseCallback):
         :raises NonFiniteWeights: if the model's weights hold NaN or inf (nothing is written)
         """
         check_finite_weights(self.model)
-        checkpoint = self.layout.checkpoint(self.model.num_timesteps)
+        self.num_timesteps = self.model.num_timesteps
+        checkpoint = self.layout.checkpoint(self.num_timesteps)
         # Replay buffer and statistics first: a checkpoint counts once its model zip exists.
         if hasattr(self.model, "save_replay_buffer") and getattr(self.model, "replay_buffer", None) is not None:
-            with atomic_path(checkpoint.replay_buffer) as temporary:
+            with atomic_path(self._checkpoint_path("replay_buffer_", extension="pkl")) as temporary:
                 self.model.save_replay_buffer(temporary)
         vec_normalize = self.model.get_vec_normalize_env()
         if vec_normalize is not None:
-            with atomic_path(checkpoint.vecnormalize) as temporary:
+            with atomic_path(self._checkpoint_path("vecnormalize_", extension="pkl")) as temporary:
                 vec_normalize.save(temporary)
-        with atomic_path(checkpoint.model) as temporary:
+        with atomic_path(self._checkpoint_path(extension="zip")) as temporary:
             self.model.save(temporary)
         self._prune()
         return checkpoint

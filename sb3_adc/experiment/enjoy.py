@@ -12,7 +12,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
 from sb3_adc.config import ExperimentConfig, resolve_entry
 from sb3_adc.config.loader import read_yaml_file
-from sb3_adc.experiment.envs import make_vec_env, wrap_vec_env
+from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
 from sb3_adc.experiment.layout import RunLayout
 from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings
 
@@ -112,7 +112,7 @@ def play(
         raise ValueError(f"`n_episodes` must be >= 1, got {n_episodes}.")
     if config.normalize is not None and statistics is None:
         raise FileNotFoundError("this run normalizes observations but its VecNormalize statistics were not found.")
-    venv = make_vec_env(config, 1, seed, render_mode="rgb_array" if record else None)
+    venv = make_run_envs(config, 1, seed, render_mode="rgb_array" if record else None)
     venv = wrap_vec_env(config, venv, training=False, statistics=statistics)
     rollouts = Rollouts()
     observation = venv.reset()

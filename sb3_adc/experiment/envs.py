@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any, SupportsFloat
 
 import gymnasium as gym
-from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecFrameStack, VecNormalize
 
 from sb3_adc.config import ExperimentConfig
@@ -38,72 +37,52 @@ class TotalStepsInfo(gym.Wrapper[Any, Any, Any, Any]):
         return observation, reward, terminated, truncated, info
 
 
-def _env_factory(
-    config: ExperimentConfig,
-    env_kwargs: dict[str, Any],
-    monitor_file: str | None,
-    steps_offset: int,
-    append_monitor: bool,
-    render_mode: str | None,
-) -> Callable[[], gym.Env]:
-    def make() -> gym.Env:
-        kwargs = dict(env_kwargs)
-        if render_mode is not None:
-            kwargs["render_mode"] = render_mode
-        env: gym.Env = gym.make(config.env_id, **kwargs)
-        if monitor_file is not None:
-            env = TotalStepsInfo(env, steps_offset)
-            env = Monitor(env, monitor_file, info_keywords=(TOTAL_STEPS_KEY,), override_existing=not append_monitor)
-        else:
-            env = Monitor(env)
-        # As SB3's make_vec_env: wrappers go outside the Monitor, which records the environment's own returns.
-        return config.wrap_env(env)
-
-    return make
-
-
-def make_vec_env(
+def make_run_envs(
     config: ExperimentConfig,
     n_envs: int,
     seed: int,
     env_kwargs: dict[str, Any] | None = None,
-    monitor_files: list[str] | None = None,
+    monitor_dir: str | None = None,
     steps_offset: int = 0,
     append_monitor: bool = False,
     vec_env: str = "dummy",
     render_mode: str | None = None,
 ) -> VecEnv:
     """
-    ``n_envs`` environments of ``config`` (``env_kwargs`` and ``env_wrapper`` applied), seeded
-    ``seed, seed + 1, ...``; :func:`wrap_vec_env` then applies ``normalize`` and ``frame_stack``.
+    SB3's ``make_vec_env`` for a run: ``n_envs`` environments of ``config`` (``env_kwargs`` and ``env_wrapper``
+    applied outside the ``Monitor``), seeded ``seed, seed + 1, ...``; :func:`wrap_vec_env` then applies
+    ``normalize`` and ``frame_stack``. With a ``monitor_dir``, each environment counts its steps across episodes
+    (:class:`TotalStepsInfo`, continuing from ``steps_offset`` on resume) and its ``Monitor`` records that count.
 
     :param config: The resolved hyperparameters
     :param n_envs: Number of environments
     :param seed: Seed of the first environment
     :param env_kwargs: Keyword arguments of ``gym.make`` replacing the config's (``None``: the config's)
-    :param monitor_files: One monitor CSV path (without ``.monitor.csv``) per environment, or ``None`` for
-        no monitor file
+    :param monitor_dir: Folder of the ``{rank}.monitor.csv`` files (``None``: none written)
     :param steps_offset: Steps each environment has already taken (resumed runs)
     :param append_monitor: Append to existing monitor files instead of replacing them
     :param vec_env: ``dummy`` or ``subproc``
     :param render_mode: Gymnasium render mode passed to ``gym.make``
     """
-    kwargs = config.env_kwargs if env_kwargs is None else env_kwargs
-    factories = [
-        _env_factory(
-            config,
-            kwargs,
-            None if monitor_files is None else monitor_files[rank],
-            steps_offset,
-            append_monitor,
-            render_mode,
-        )
-        for rank in range(n_envs)
-    ]
-    venv: VecEnv = SubprocVecEnv(factories) if vec_env == "subproc" else DummyVecEnv(factories)
-    venv.seed(seed)
-    venv.action_space.seed(seed)
-    return venv
+    kwargs = dict(config.env_kwargs if env_kwargs is None else env_kwargs)
+    if render_mode is not None:
+        kwargs["render_mode"] = render_mode
+    logged = monitor_dir is not None
+
+    def make_env(**make_kwargs: Any) -> gym.Env:
+        env: gym.Env = gym.make(config.env_id, **make_kwargs)
+        return TotalStepsInfo(env, steps_offset) if logged else env
+
+    return make_vec_env(
+        make_env,
+        n_envs,
+        seed=seed,
+        env_kwargs=kwargs,
+        monitor_dir=monitor_dir,
+        wrapper_class=config.wrap_env,
+        vec_env_cls=SubprocVecEnv if vec_env == "subproc" else DummyVecEnv,
+        monitor_kwargs={"info_keywords": (TOTAL_STEPS_KEY,), "override_existing": not append_monitor} if logged else None,
+    )
 
 
 def wrap_vec_env(config: ExperimentConfig, venv: VecEnv, training: bool, statistics: str | None = None) -> VecEnv:

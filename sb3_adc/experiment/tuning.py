@@ -52,7 +52,7 @@ from sb3_adc.config.loader import (
     select_entry,
 )
 from sb3_adc.experiment.divergence import TrainingDiverged
-from sb3_adc.experiment.envs import make_vec_env, wrap_vec_env
+from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
 from sb3_adc.experiment.layout import env_name
 from sb3_adc.experiment.samplers import SAMPLERS, Space
 from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings
@@ -308,7 +308,7 @@ class TrialEvalCallback(EvalCallback):
         config = load_hyperparams(settings.algo, settings.env_id, hyperparams_file, n_timesteps=settings.n_timesteps)
         if settings.env_kwargs:
             config.env_kwargs.update(settings.env_kwargs)
-        eval_env = wrap_vec_env(config, make_vec_env(config, 1, seed + EVAL_SEED_OFFSET), training=False)
+        eval_env = wrap_vec_env(config, make_run_envs(config, 1, seed + EVAL_SEED_OFFSET), training=False)
         super().__init__(
             eval_env,
             n_eval_episodes=settings.eval_episodes,

@@ -1,9 +1,20 @@
 """
-Bridge to the RL Zoo (extra ``zoo``): ``python -m sb3_adc.zoo train|enjoy ...`` runs ``rl_zoo3``'s own
-``train``/``enjoy`` with ADC and the paper's baselines in its ``ALGOS`` table and sb3-adc's hyperparameter
-files, read by :mod:`sb3_adc.config` (nothing from a configuration file is ``eval``'d or imported by name).
+``python -m sb3_adc.zoo train|enjoy ...``: the RL Zoo's command names on sb3-adc's engine (the Zoo's
+``ExperimentManager`` subclassed, :class:`~sb3_adc.experiment.manager.RunManager`), and
+:func:`register_algorithms`, which adds ADC and the paper's baselines to the Zoo's ``ALGOS`` table for your own
+use of the Zoo's modules.
 """
 
-from sb3_adc.zoo.bridge import ZOO_ALGORITHMS, main, register_algorithms, run_enjoy, run_train
+from sb3_adc.extras import requires_extra
+from sb3_adc.zoo.bridge import main
 
-__all__ = ["ZOO_ALGORITHMS", "main", "register_algorithms", "run_enjoy", "run_train"]
+
+def register_algorithms() -> None:
+    """Add ``adc``, ``vanilla_ac`` and ``ddpg`` (with a critic learning rate) to ``rl_zoo3.utils.ALGOS``."""
+    with requires_extra("zoo", "sb3_adc.zoo.register_algorithms"):
+        from sb3_adc.experiment.manager import register_algorithms as register
+
+    register()
+
+
+__all__ = ["main", "register_algorithms"]

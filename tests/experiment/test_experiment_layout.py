@@ -71,3 +71,18 @@ def test_settings_round_trip_and_intervals(tmp_path):
     (tmp_path / "bad.yml").write_text("algo: adc\nenv_id: Pendulum-v1\nlearning_rate: 3\n")
     with pytest.raises(ValueError, match="does not hold sb3-adc run settings"):
         TrainSettings.load(str(tmp_path / "bad.yml"))
+
+
+def test_checkpoints_are_read_under_the_names_sb3_checkpoint_callback_writes(tmp_path):
+    """CheckpointSaver writes with SB3's CheckpointCallback names; the layout must find them under the same names."""
+    from sb3_adc.experiment.callbacks import CheckpointSaver
+
+    layout = RunLayout(str(tmp_path), "Pendulum-v1")
+    saver = CheckpointSaver(layout, every=100, keep=2)
+    saver.num_timesteps = 300
+    checkpoint = layout.checkpoint(300)
+    assert saver._checkpoint_path(extension="zip") == checkpoint.model
+    assert saver._checkpoint_path("replay_buffer_", extension="pkl") == checkpoint.replay_buffer
+    assert saver._checkpoint_path("vecnormalize_", extension="pkl") == checkpoint.vecnormalize
+    (tmp_path / "rl_model_300_steps.zip").write_bytes(b"")
+    assert [found.timesteps for found in layout.checkpoints()] == [300]

@@ -1,4 +1,4 @@
-"""``python -m sb3_adc.zoo``: the RL Zoo's own train/enjoy with ADC registered and safe hyperparameters."""
+"""``python -m sb3_adc.zoo``: the RL Zoo's command names on sb3-adc's engine (the Zoo's ExperimentManager subclassed)."""
 
 import os
 import subprocess
@@ -13,7 +13,6 @@ pytest.importorskip("rl_zoo3")
 from sb3_adc import ADC
 from sb3_adc.baselines import DuelingDQNPolicy, SplitRateDDPG
 from sb3_adc.common.noise import EpsilonGaussianNoise
-from sb3_adc.config import HyperparamsError
 from sb3_adc.zoo import main
 
 CONF = """
@@ -70,18 +69,36 @@ def test_zoo_train_runs_adc_with_our_hyperparameters(zoo_run):
     assert config["policy_kwargs"] == "dict(net_arch=[8], value_net_arch=[4])"
     assert config["batch_size"] == 8
     args = yaml.safe_load((zoo_run / "Pendulum-v1" / "args.yml").read_text())
-    assert (args["algo"], args["env"]) == ("adc", "Pendulum-v1")
+    assert (args["algo"], args["env_id"]) == ("adc", "Pendulum-v1")
+
+
+def test_zoo_train_runs_on_the_zoo_experiment_manager(monkeypatch, tmp_path):
+    """The engine is the Zoo's ExperimentManager: its setup_experiment, learn and save_trained_model run."""
+    from rl_zoo3.exp_manager import ExperimentManager
+
+    from sb3_adc.experiment.manager import RunManager
+
+    assert issubclass(RunManager, ExperimentManager)
+    calls = []
+    for name in ("setup_experiment", "learn", "save_trained_model"):
+        original = getattr(RunManager, name)
+        monkeypatch.setattr(RunManager, name, lambda self, *a, _f=original, _n=name: calls.append(_n) or _f(self, *a))
+    conf = write_conf(tmp_path, CONF)
+    args = ["train", "--algo", "adc", "--env", "Pendulum-v1", "-conf", conf, "-f", str(tmp_path / "logs"), "-n", "60"]
+    assert main([*args, "--eval-freq", "-1"]) == 0
+    assert calls == ["setup_experiment", "learn", "save_trained_model"]
 
 
 def test_zoo_enjoy_plays_the_run(zoo_run, capsys):
     logs = zoo_run.parent.parent
-    assert main(["enjoy", "--algo", "adc", "--env", "Pendulum-v1", "-f", str(logs), "--no-render", "-n", "110"]) == 0
+    args = ["enjoy", "--algo", "adc", "--env", "Pendulum-v1", "-f", str(logs), "--no-render", "-n", "2", "--load-best"]
+    assert main(args) == 0
     out = capsys.readouterr().out
-    assert out.count("Episode Reward:") == 2
-    assert "Episode Length 50" in out
+    assert "best_model.zip" in out
+    assert out.count("length 50") == 2
 
 
-def test_zoo_enjoy_never_executes_a_tampered_config(zoo_run, tmp_path):
+def test_zoo_enjoy_never_executes_a_tampered_config(zoo_run, tmp_path, capsys):
     tampered = tmp_path / "logs" / "adc" / "Pendulum-v1_1"
     tampered.mkdir(parents=True)
     for name in ("Pendulum-v1.zip",):
@@ -90,12 +107,12 @@ def test_zoo_enjoy_never_executes_a_tampered_config(zoo_run, tmp_path):
     (tampered / "Pendulum-v1" / "args.yml").write_text((zoo_run / "Pendulum-v1" / "args.yml").read_text())
     marker = tmp_path / "pwned"
     (tampered / "Pendulum-v1" / "config.yml").write_text(f"n_timesteps: !!python/object/apply:os.system ['touch {marker}']\n")
-    with pytest.raises(HyperparamsError, match=r"config\.yml: file is not valid YAML \(Python tags are not accepted\)"):
-        main(["enjoy", "--algo", "adc", "--env", "Pendulum-v1", "-f", str(tmp_path / "logs"), "--no-render", "-n", "10"])
+    assert main(["enjoy", "--algo", "adc", "--env", "Pendulum-v1", "-f", str(tmp_path / "logs"), "--no-render", "-n=1"]) == 2
+    assert "config.yml: file is not valid YAML (Python tags are not accepted)" in capsys.readouterr().err
     assert not marker.exists()
 
 
-def test_zoo_enjoy_stops_an_alias_bomb(zoo_run, tmp_path):
+def test_zoo_enjoy_stops_an_alias_bomb(zoo_run, tmp_path, capsys):
     run_dir = tmp_path / "logs" / "adc" / "Pendulum-v1_1"
     (run_dir / "Pendulum-v1").mkdir(parents=True)
     (run_dir / "Pendulum-v1.zip").write_bytes((zoo_run / "Pendulum-v1.zip").read_bytes())
@@ -104,17 +121,18 @@ def test_zoo_enjoy_stops_an_alias_bomb(zoo_run, tmp_path):
         f"a{level}: &a{level} [{', '.join([f'*a{level - 1}'] * 9)}]\n" for level in range(1, 9)
     )
     (run_dir / "Pendulum-v1" / "args.yml").write_text(bomb)
-    with pytest.raises(HyperparamsError, match=r"args\.yml: file is over a limit of sb3_adc\.config\.loader"):
-        main(["enjoy", "--algo", "adc", "--env", "Pendulum-v1", "-f", str(tmp_path / "logs"), "--no-render", "-n", "10"])
+    assert main(["enjoy", "--algo", "adc", "--env", "Pendulum-v1", "-f", str(tmp_path / "logs"), "--no-render", "-n=1"]) == 2
+    assert "args.yml: file is over a limit of sb3_adc.config.loader" in capsys.readouterr().err
 
 
-def test_zoo_params_are_parsed_not_evaluated(tmp_path):
+def test_zoo_params_are_parsed_not_evaluated(tmp_path, capsys):
     conf = write_conf(tmp_path, CONF)
     marker = tmp_path / "pwned"
     attack = f"policy_kwargs:dict(net_arch=__import__('os').system('touch {marker}'))"
-    with pytest.raises(HyperparamsError, match="function calls are not allowed"):
-        main(["train", "--algo", "adc", "--env", "Pendulum-v1", "-conf", conf, "-f", str(tmp_path), "-params", attack])
+    assert main(["train", "--algo", "adc", "--env", "Pendulum-v1", "-conf", conf, "-f", str(tmp_path), "-params", attack]) == 2
+    assert "function calls are not allowed" in capsys.readouterr().err
     assert not marker.exists()
+    assert not (tmp_path / "adc").exists()  # nothing written
 
 
 def test_zoo_dqn_with_the_dueling_policy_and_discretized_actions(tmp_path):
@@ -155,7 +173,7 @@ def test_python_m_sb3_adc_zoo_help_from_another_directory(tmp_path):
 
 
 def test_zoo_optimize_draws_from_our_search_space(tmp_path, capsys):
-    """The Zoo's -optimize tunes ADC with sb3-adc's sampler: its critic knobs are searched, -params stay fixed."""
+    """-optimize tunes ADC with sb3-adc's sampler: its critic knobs are searched, -params stay fixed."""
     conf = write_conf(tmp_path, CONF)
     logs = tmp_path / "logs"
     args = ["train", "--algo", "adc", "--env", "Pendulum-v1", "-conf", conf, "-f", str(logs), "--seed", "0"]
@@ -169,8 +187,9 @@ def test_zoo_optimize_draws_from_our_search_space(tmp_path, capsys):
         study_name="zoo", storage=optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(str(storage)))
     )
     assert len(study.trials) == 2
-    for trial in study.trials:
-        assert trial.state == optuna.trial.TrialState.COMPLETE
-        assert "critic_design" in trial.params
-        assert "n_intervals" in trial.params
-        assert "gamma" not in trial.params
+    assert all(trial.state == optuna.trial.TrialState.COMPLETE for trial in study.trials)
+    assert study.trials[0].params == {}  # the first trial is the entry itself
+    drawn = study.trials[1].params
+    assert "critic_design" in drawn
+    assert "n_intervals" in drawn
+    assert "gamma" not in drawn

@@ -1,0 +1,388 @@
+"""
+The experiment engine: the RL Zoo's ``ExperimentManager`` running one sb3-adc run.
+
+:class:`RunManager` follows the Zoo's life cycle (``setup_experiment`` reads and preprocesses the
+hyperparameters, creates the log folder, the callbacks, the environments and the model; then ``learn`` and
+``save_trained_model``) and fills its hooks with what the Zoo lacks:
+
+- hyperparameters resolved by :mod:`sb3_adc.config` (validated, nothing ``eval``'d or imported by name);
+- resume: the Zoo's "continue from a zip" (``-i``) also loads a checkpoint of the run itself, with its replay
+  buffer, ``VecNormalize`` statistics, timestep count, exploration-noise state and the evaluations so far;
+- checkpoints and evaluations written atomically, on the timestep count, so a resumed run evaluates and saves at
+  the timesteps an uninterrupted one would (:mod:`sb3_adc.experiment.callbacks`);
+- a checkpoint on Ctrl-C, an error naming the first NaN or inf, and a final evaluation of its own seeds.
+
+``sb3-adc train`` (:func:`sb3_adc.experiment.train`, :func:`~sb3_adc.experiment.resume`), the benchmark grids,
+the tuning trials and ``python -m sb3_adc.zoo train`` all run through it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import warnings
+from collections import OrderedDict
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import yaml
+from gymnasium import spaces
+from rl_zoo3.exp_manager import ExperimentManager
+from rl_zoo3.utils import ALGOS
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
+from tqdm import TqdmExperimentalWarning
+
+from sb3_adc.common.atomic import atomic_path, write_atomically
+from sb3_adc.common.model_files import model_file_errors
+from sb3_adc.config import ALGORITHMS, ExperimentConfig
+from sb3_adc.experiment.callbacks import CheckpointSaver, EvaluationHistory, PeriodicEvalCallback
+from sb3_adc.experiment.divergence import NonFiniteValue, NonFiniteWeights, TrainingDiverged, check_finite_weights
+from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
+from sb3_adc.experiment.evaluation import FinalEvaluation, evaluate_final
+from sb3_adc.experiment.layout import Checkpoint, DamagedFileError, RunLayout
+from sb3_adc.experiment.monitor_files import truncate_monitor
+from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings
+
+
+def register_algorithms() -> None:
+    """
+    Add sb3-adc's algorithms to the Zoo's ``ALGOS`` table, the only way the Zoo takes algorithms: ``adc``,
+    ``vanilla_ac``, and ``ddpg`` as :class:`~sb3_adc.baselines.SplitRateDDPG` (SB3's DDPG plus
+    ``critic_learning_rate``, identical without it). The other names already map to the same SB3 classes.
+    """
+    for name in ("adc", "vanilla_ac", "ddpg"):
+        ALGOS[name] = ALGORITHMS.resolve(name, "sb3_adc.experiment.manager", "algo")  # type: ignore[assignment]
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """
+    Training was interrupted (Ctrl-C); a checkpoint was saved first.
+
+    :param run_dir: The run's folder (pass it to :func:`~sb3_adc.experiment.resume`)
+    :param timesteps: The timestep of the checkpoint
+    """
+
+    def __init__(self, run_dir: str, timesteps: int):
+        super().__init__(f"training interrupted at timestep {timesteps}; checkpoint saved in {run_dir}")
+        self.run_dir = run_dir
+        self.timesteps = timesteps
+
+
+class RunManager(ExperimentManager):
+    """
+    The RL Zoo's ``ExperimentManager`` for one run in the layout of :mod:`sb3_adc.experiment.layout`.
+
+    :param settings: What to train and how to log it (the run's ``args.yml``)
+    :param config: The resolved hyperparameters (the run's ``config.yml``)
+    :param checkpoint: The checkpoint to resume from (``None``: a new run, or a run started again from scratch)
+    :param callbacks: Callbacks called after the run's own, e.g. the pruning callback of a tuning trial
+    """
+
+    def __init__(
+        self,
+        settings: TrainSettings,
+        config: ExperimentConfig,
+        checkpoint: Checkpoint | None = None,
+        callbacks: Sequence[BaseCallback] = (),
+    ):
+        register_algorithms()
+        assert settings.run_dir is not None, "the run folder is chosen before the manager is made"
+        self.settings = settings
+        self.experiment = config
+        self.layout = RunLayout(settings.run_dir, settings.env_id)
+        self.checkpoint = checkpoint
+        self.extra_callbacks = list(callbacks)
+        super().__init__(
+            args=argparse.Namespace(**dataclasses.asdict(settings)),
+            algo=settings.algo,
+            env_id=settings.env_id,
+            log_folder=settings.log_folder,
+            n_timesteps=config.n_timesteps,
+            eval_freq=settings.evaluation_interval(config.n_timesteps),
+            n_eval_episodes=settings.eval_episodes,
+            save_freq=settings.checkpoint_interval(config.n_timesteps),
+            env_kwargs=dict(config.env_kwargs),
+            eval_env_kwargs=settings.evaluation_env_kwargs(config.env_kwargs),
+            trained_agent=checkpoint.model if checkpoint is not None else settings.trained_agent or "",
+            seed=settings.seed,
+            verbose=settings.verbose,
+            vec_env_type=settings.vec_env,
+            n_eval_envs=settings.n_eval_envs,
+            device=settings.device,
+            config=config.source,
+            show_progress=settings.progress_bar,
+        )
+        # The Zoo derives these from the log folder's next run id; the run's folder is already chosen.
+        self.save_path = self.layout.run_dir
+        self.params_path = self.layout.params_dir
+        self.tensorboard_log = settings.tensorboard_folder()
+        self.continue_training = bool(self.trained_agent)
+        self.saver = CheckpointSaver(self.layout, max(self.save_freq, 1), settings.keep_checkpoints)
+        self.train_env: VecEnv | None = None
+        self.eval_env: VecEnv | None = None
+
+    # --- hyperparameters: resolved by sb3_adc.config, so the Zoo receives Python objects ---
+
+    def read_hyperparameters(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        saved = OrderedDict(sorted(self.experiment.saved.items()))
+        return dict(saved), saved
+
+    def _preprocess_hyperparams(
+        self, hyperparams: dict[str, Any]
+    ) -> tuple[dict[str, Any], Callable | None, list[BaseCallback], Callable | None]:
+        config = self.experiment
+        self.n_envs = config.n_envs
+        self.n_timesteps = config.n_timesteps
+        if config.normalize is not None:
+            self.normalize = True
+            self.normalize_kwargs = dict(config.normalize)
+        self.frame_stack = config.frame_stack  # type: ignore[assignment]  # the Zoo declares it None
+        env_wrapper = config.wrap_env if config.env_wrappers else None
+        return dict(config.model_kwargs), env_wrapper, config.make_callbacks(), None
+
+    def _preprocess_action_noise(
+        self, hyperparams: dict[str, Any], saved_hyperparams: dict[str, Any], env: VecEnv
+    ) -> dict[str, Any]:
+        if isinstance(env.action_space, spaces.Box):
+            self.n_actions = env.action_space.shape[0]
+        if self.experiment.noise is not None:
+            hyperparams["action_noise"] = self.experiment.make_action_noise(env.action_space)
+        return hyperparams
+
+    # --- the run's folder, callbacks and environments ---
+
+    def create_log_folder(self) -> None:
+        """
+        A new run writes ``config.yml`` and ``args.yml`` first, so that it can be resumed from the moment its
+        folder exists; a resumed run keeps the evaluations and episodes up to its checkpoint.
+        """
+        if self.checkpoint is None and not os.path.isfile(self.layout.args):
+            os.makedirs(self.layout.params_dir, exist_ok=True)
+            text = yaml.safe_dump(self.experiment.saved, sort_keys=True)
+            write_atomically(self.layout.config, lambda stream: stream.write(text))
+            self.settings.save(self.layout.args)
+        self._restore_records()
+
+    def create_callbacks(self) -> None:
+        """The periodic evaluation, then the checkpoints (a checkpoint includes its timestep's evaluation)."""
+        own: list[BaseCallback] = []
+        if self.eval_freq > 0:
+            self.eval_env = self.create_envs(self.n_eval_envs, eval_env=True)
+            history = EvaluationHistory.load(self.layout.evaluations)
+            own.append(
+                PeriodicEvalCallback(
+                    self.eval_env, self.eval_freq, history, self.n_eval_episodes, self.save_path, self.verbose
+                )
+            )
+        if self.save_freq > 0:
+            own.append(self.saver)
+        self.callbacks = [*own, *self.callbacks, *self.extra_callbacks]
+
+    def create_envs(self, n_envs: int, eval_env: bool = False, no_log: bool = False) -> VecEnv:
+        """
+        Training environments write one monitor CSV each (appended to on resume, the step count continuing) and
+        are seeded ``seed, seed + 1, ...``; evaluation environments are seeded from ``seed + EVAL_SEED_OFFSET``
+        and never update the ``VecNormalize`` statistics.
+        """
+        config = self.experiment
+        if eval_env:
+            kwargs = self.settings.evaluation_env_kwargs(config.env_kwargs)
+            venv = make_run_envs(config, n_envs, self.seed + EVAL_SEED_OFFSET, env_kwargs=kwargs)
+            return wrap_vec_env(config, venv, training=False)
+        start = self.checkpoint.timesteps if self.checkpoint is not None else 0
+        venv = make_run_envs(
+            config,
+            n_envs,
+            self.seed,
+            monitor_dir=None if no_log else self.layout.run_dir,
+            steps_offset=start // n_envs,
+            append_monitor=self.checkpoint is not None,
+            vec_env=self.settings.vec_env,
+        )
+        self.train_env = wrap_vec_env(config, venv, training=True, statistics=self._statistics_to_load())
+        return self.train_env
+
+    def _load_pretrained_agent(self, hyperparams: dict[str, Any], env: VecEnv) -> BaseAlgorithm:
+        """
+        Resume from the run's checkpoint (the model with its replay buffer, on a new random stream), or continue
+        training a saved model (``-i``) as the Zoo does: its policy and weights, the run's other hyperparameters,
+        the replay buffer saved with it (the Zoo's ``replay_buffer.pkl``, or a checkpoint's own), and a timestep
+        count starting at 0, so the run trains ``n_timesteps`` more.
+        """
+        algorithm_class: type[Any] = self.experiment.algorithm_class
+        if self.checkpoint is not None:
+            model = algorithm_class.load(
+                self.checkpoint.model, env=env, device=self.device, tensorboard_log=self.tensorboard_log
+            )
+            model.verbose = self.verbose
+            if os.path.isfile(self.checkpoint.replay_buffer) and hasattr(model, "load_replay_buffer"):
+                model.load_replay_buffer(self.checkpoint.replay_buffer)
+            # A new random stream: the resumed part does not replay the first part's draws.
+            model.set_random_seed(self.seed + self.checkpoint.timesteps)
+            return model
+        print(f"Continuing the training of {self.trained_agent}")
+        with model_file_errors(self.trained_agent, algorithm_class.__name__):
+            model = super()._load_pretrained_agent(hyperparams, env)
+        replay_buffer, _ = self._saved_with_agent()
+        if replay_buffer is not None and os.path.basename(replay_buffer) != "replay_buffer.pkl":  # the Zoo loaded that one
+            print(f"Loading the replay buffer {replay_buffer}")
+            model.load_replay_buffer(replay_buffer)  # type: ignore[attr-defined]
+        model.num_timesteps = 0
+        return model
+
+    def _save_config(self, saved_hyperparams: dict[str, Any]) -> None:
+        """Nothing more to write: ``create_log_folder`` wrote the configuration before anything could fail."""
+
+    # --- training, saving and the final evaluation ---
+
+    def learn(self, model: BaseAlgorithm) -> None:
+        """
+        Train to the budget. Ctrl-C saves a checkpoint and raises :class:`RunInterrupted`; a NaN or inf raises
+        :class:`~sb3_adc.experiment.divergence.TrainingDiverged`, naming the checkpoint left to resume from.
+        """
+        if self.checkpoint is not None:
+            print(f"Resuming {self.save_path} from timestep {self.checkpoint.timesteps} of {self.n_timesteps}")
+        try:
+            with warnings.catch_warnings():
+                # SB3's progress bar uses tqdm's rich front-end, which warns that it is experimental.
+                warnings.filterwarnings("ignore", category=TqdmExperimentalWarning)
+                model.learn(
+                    max(self.n_timesteps - model.num_timesteps, 0),
+                    callback=self.callbacks,
+                    reset_num_timesteps=self.checkpoint is None,
+                    progress_bar=self.show_progress,
+                )
+        except KeyboardInterrupt:
+            if self.saver.model is None:
+                self.saver.init_callback(model)
+            try:
+                saved = self.saver.save()
+            except NonFiniteWeights as error:
+                raise self._diverged(model, error) from None
+            print(f"\nInterrupted: checkpoint at timestep {saved.timesteps} saved.")
+            print(f"Continue with: sb3-adc train --resume {self.save_path}")
+            raise RunInterrupted(self.save_path, saved.timesteps) from None
+        except (NonFiniteValue, NonFiniteWeights) as error:
+            self._close()
+            raise self._diverged(model, error) from None
+        finally:
+            if self.eval_env is not None:
+                self.eval_env.close()
+
+    def save_trained_model(self, model: BaseAlgorithm) -> None:
+        """
+        The final model and ``VecNormalize`` statistics (atomically), after a last checkpoint with the replay
+        buffer, so that a finished run can be trained further (resume with a larger budget).
+        """
+        try:
+            check_finite_weights(model)
+        except NonFiniteWeights as error:
+            self._close()
+            raise self._diverged(model, error) from None
+        if self.save_freq > 0:
+            checkpoints = self.layout.checkpoints()
+            if not checkpoints or checkpoints[-1].timesteps != model.num_timesteps:
+                self.saver.save()
+        with atomic_path(self.layout.final_model) as temporary:
+            model.save(temporary)
+        vec_normalize = model.get_vec_normalize_env()
+        if vec_normalize is not None:
+            with atomic_path(self.layout.vecnormalize) as temporary:
+                vec_normalize.save(temporary)
+
+    def evaluate(self, model: BaseAlgorithm) -> FinalEvaluation:
+        """The final evaluation (its file, written last, marks the run finished)."""
+        final_env = self.create_envs(1, eval_env=True)
+        if model.get_vec_normalize_env() is not None and self.train_env is not None:
+            sync_envs_normalization(self.train_env, final_env)
+        try:
+            evaluation = evaluate_final(
+                model, final_env, self.settings.final_eval_episodes, self.algo, self.settings.env_id, self.seed
+            )
+        finally:
+            final_env.close()
+            self._close()
+        evaluation.save(self.layout.final_evaluation)
+        print(evaluation.summary())
+        return evaluation
+
+    def run(self) -> FinalEvaluation:
+        """The whole run: the Zoo's ``setup_experiment``, ``learn`` and ``save_trained_model``, then :meth:`evaluate`."""
+        setup = self.setup_experiment()
+        assert setup is not None  # None only when optimizing, which sb3-adc does in sb3_adc.experiment.tuning
+        model, _ = setup
+        self.learn(model)
+        self.save_trained_model(model)
+        return self.evaluate(model)
+
+    # --- helpers ---
+
+    def _close(self) -> None:
+        if self.train_env is not None:
+            self.train_env.close()
+
+    def _diverged(self, model: BaseAlgorithm, error: NonFiniteValue | NonFiniteWeights) -> TrainingDiverged:
+        """The error that ends a run which met a NaN or inf: where, and which checkpoint is left to resume from."""
+        timesteps = model.num_timesteps
+        if isinstance(error, NonFiniteValue) and error.role == "training":
+            timesteps += model.n_envs  # the step in progress: SB3 counts it once the environments return
+        checkpoints = self.layout.checkpoints()
+        source = error.source if isinstance(error, NonFiniteValue) else "weights"
+        last = checkpoints[-1].timesteps if checkpoints else None
+        return TrainingDiverged(self.save_path, timesteps, source, str(error), last)
+
+    def _restore_records(self) -> None:
+        """Keep the evaluations and episodes up to the checkpoint; from scratch, remove them all."""
+        layout = self.layout
+        if self.checkpoint is None:
+            for path in [layout.evaluations, layout.best_model, *layout.monitor_files()]:
+                if os.path.exists(path):
+                    os.remove(path)
+            return
+        start = self.checkpoint.timesteps
+        try:
+            history = EvaluationHistory.load(layout.evaluations)
+        except DamagedFileError as error:
+            # The evaluations up to the checkpoint cannot be recovered; the run goes on without them.
+            print(f"{error}; the evaluations before timestep {start} are lost and the history restarts after it.")
+            history = EvaluationHistory()
+        history.until(start).save(layout.evaluations)
+        for path in layout.monitor_files():
+            truncate_monitor(path, start // self.experiment.n_envs)
+
+    def _saved_with_agent(self) -> tuple[str | None, str | None]:
+        """
+        The replay buffer and ``VecNormalize`` statistics saved with the model to continue (``None`` where absent):
+        a checkpoint's own (``rl_model_{t}_steps.zip``), else the Zoo's ``replay_buffer.pkl`` beside the model and
+        ``{env_name}/vecnormalize.pkl``.
+        """
+        return saved_with(self.trained_agent, self.settings.env_id)
+
+    def _statistics_to_load(self) -> str | None:
+        """The ``VecNormalize`` statistics the run starts from: the checkpoint's, or those of the trained agent."""
+        if self.checkpoint is not None:
+            return self.checkpoint.vecnormalize if os.path.isfile(self.checkpoint.vecnormalize) else None
+        if self.trained_agent:
+            return self._saved_with_agent()[1]
+        return None
+
+
+def saved_with(model_path: str, env_id: str) -> tuple[str | None, str | None]:
+    """
+    The replay buffer and ``VecNormalize`` statistics saved with a model (``None`` where absent): a checkpoint's
+    own (``rl_model_{t}_steps.zip``), else the RL Zoo's ``replay_buffer.pkl`` beside the model and
+    ``{env_name}/vecnormalize.pkl``.
+
+    :param model_path: The model file
+    :param env_id: The environment id of its run
+    """
+    layout = RunLayout(os.path.dirname(os.path.abspath(model_path)), env_id)
+    files = (os.path.join(layout.run_dir, "replay_buffer.pkl"), layout.vecnormalize)
+    for checkpoint in layout.checkpoints():
+        if os.path.abspath(checkpoint.model) == os.path.abspath(model_path):
+            files = (checkpoint.replay_buffer, checkpoint.vecnormalize)
+    replay_buffer, statistics = (path if os.path.isfile(path) else None for path in files)
+    return replay_buffer, statistics
