@@ -95,7 +95,12 @@ CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time
 
 
 def time_training(make: Callable[[], BaseAlgorithm], steps: int, warmup: int, clock: Callable[[], float]) -> float:
-    """Steps per second of ``learn(steps)`` after ``warmup`` steps (which fill the buffer past ``learning_starts``)."""
+    """
+    Steps per second of ``learn(steps)`` after ``warmup`` steps (which fill the buffer past ``learning_starts``).
+
+    SB3's ``learn`` itself, not the experiment engine: what is timed is the algorithm's own cost, without the
+    engine's evaluations, checkpoints and monitor files.
+    """
     model = make()
     model.learn(warmup)
     start = clock()
