@@ -24,6 +24,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -51,7 +52,7 @@ CI_KEYS = ["eval/critic_bias", "eval/critic_bias_abs", "train/advantage_roughnes
 def summary_with_cis(table: pd.DataFrame, reps: int) -> pd.DataFrame:
     """IQM and mean of each of :data:`CI_KEYS` per configuration, with 95% stratified-bootstrap CIs over runs."""
     frames = []
-    for key in CI_KEYS:
+    for key in (key for key in CI_KEYS if key in table.columns):  # ADC's metrics are absent from DDPG-only tables
         runs = table[["config", "seed", key]].dropna()
         if not runs.empty:
             scores = runs.rename(columns={"config": "algo", key: "mean_return"}).assign(env=key)
@@ -137,7 +138,17 @@ def main() -> None:
     figure = DOCS_STATIC / f"critic_diagnostics{suffix}.png"
     figure.parent.mkdir(parents=True, exist_ok=True)
     plot_diagnostics(histories, str(figure), title=f"Critic diagnostics on {ENV_ID} (seeds {seeds})")
-    print(f"wall time {time.perf_counter() - start:.0f} s")
+    wall_time = time.perf_counter() - start
+    metadata = {
+        "configs": list(args.configs),
+        "seeds": seeds,
+        "n_timesteps": n_timesteps,
+        "workers": args.workers,
+        "wall_time_s": round(wall_time, 1),
+        "note": "wall time of this invocation (runs finished by an earlier one are skipped)",
+    }
+    (output / "metadata.json").write_text(json.dumps(metadata, indent=2) + "\n")
+    print(f"wall time {wall_time:.0f} s")
     with pd.option_context("display.width", 200, "display.max_columns", 20):
         print(summary.replace({np.nan: None}))
 
