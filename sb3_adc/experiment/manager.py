@@ -186,6 +186,10 @@ class RunManager(ExperimentManager):
         Training environments write one monitor CSV each (appended to on resume, the step count continuing) and
         are seeded ``seed, seed + 1, ...``; evaluation environments are seeded from ``seed + EVAL_SEED_OFFSET``
         and never update the ``VecNormalize`` statistics.
+
+        :param n_envs: Number of environments
+        :param eval_env: Evaluation environments rather than training ones
+        :param no_log: Training environments without monitor files
         """
         config = self.experiment
         if eval_env:
@@ -242,6 +246,8 @@ class RunManager(ExperimentManager):
         """
         Train to the budget. Ctrl-C saves a checkpoint and raises :class:`RunInterrupted`; a NaN or inf raises
         :class:`~sb3_adc.experiment.divergence.TrainingDiverged`, naming the checkpoint left to resume from.
+
+        :param model: The model of :meth:`setup_experiment`
         """
         if self.checkpoint is not None:
             print(f"Resuming {self.save_path} from timestep {self.checkpoint.timesteps} of {self.n_timesteps}")
@@ -276,6 +282,8 @@ class RunManager(ExperimentManager):
         """
         The final model and ``VecNormalize`` statistics (atomically), after a last checkpoint with the replay
         buffer, so that a finished run can be trained further (resume with a larger budget).
+
+        :param model: The trained model
         """
         try:
             check_finite_weights(model)
@@ -294,7 +302,11 @@ class RunManager(ExperimentManager):
                 vec_normalize.save(temporary)
 
     def evaluate(self, model: BaseAlgorithm) -> FinalEvaluation:
-        """The final evaluation (its file, written last, marks the run finished)."""
+        """
+        The final evaluation (its file, written last, marks the run finished).
+
+        :param model: The trained model
+        """
         final_env = self.create_envs(1, eval_env=True)
         if model.get_vec_normalize_env() is not None and self.train_env is not None:
             sync_envs_normalization(self.train_env, final_env)
