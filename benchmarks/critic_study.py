@@ -210,11 +210,12 @@ GRIDS: dict[str, tuple[list[str], list[int], list[str]]] = {
         ["adc_table3_n20", "adc_table3_n60", "adc_table3_n100", "adc_table3_n140", "ddpg_table3"],
     ),
     # The paper's Figures 4-5 with its Table 1, on fresh seeds, for 300 episodes (60 000 steps: the window of
-    # episodes 50-300 in which the paper reports ADC ahead of DDPG).
+    # episodes 50-300 in which the paper reports ADC ahead of DDPG), with TD3 and SAC as modern references on
+    # their shipped Pendulum-v1 entries (the RL Zoo's; the paper has no table for them).
     "pendulum_paper": (
         ["Pendulum-v1"],
         list(range(1000, 1010)),
-        ["adc_table1", "ddpg_table1", "vanilla_ac_table1", "dqn_table1"],
+        ["adc_table1", "ddpg_table1", "vanilla_ac_table1", "dqn_table1", "td3_shipped", "sac_shipped"],
     ),
     # The paper's Figures 7-8 with its Table 2 on the paper-style course, on fresh seeds, for the entries' budget
     # (30 000 steps; an episode lasts up to 500 steps, less after a collision; the paper trained 3500 episodes).
