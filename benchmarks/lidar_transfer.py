@@ -255,7 +255,7 @@ def train_model(args: argparse.Namespace, run_dir: Path) -> tuple[BaseAlgorithm,
 
 def plot_trajectories(episodes_by_model: dict[str, list[Episode]], title: str, path: Path) -> None:
     """
-    One row per model, one panel per course: the walls and every jittered episode's path (blue without a
+    One row per model, one panel per course: the course and every jittered episode's path (blue without a
     collision, red with a cross where it crashed).
     """
     import matplotlib
@@ -263,26 +263,21 @@ def plot_trajectories(episodes_by_model: dict[str, list[Episode]], title: str, p
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from sb3_adc.experiment.plots import draw_course
+
     labels = list(episodes_by_model)
     courses = list(dict.fromkeys(e.course for e in episodes_by_model[labels[0]] if e.jittered))
     fig, axes = plt.subplots(len(labels), len(courses), figsize=(3.6 * len(courses), 3.3 * len(labels)), squeeze=False)
     for row, label in enumerate(labels):
         for ax, name in zip(axes[row], courses, strict=True):
-            course = load_course(name)
-            for x0, y0, x1, y1 in course.walls:
-                ax.plot([x0, x1], [y0, y1], color="0.25", linewidth=1.2)
             runs = [e for e in episodes_by_model[label] if e.jittered and e.course == name]
             for episode in runs:
                 colour = "tab:red" if episode.collision else "tab:blue"
                 ax.plot(episode.path[:, 0], episode.path[:, 1], color=colour, linewidth=0.6, alpha=0.6)
                 if episode.collision:
                     ax.plot(*episode.path[-1], marker="x", color="tab:red", markersize=6)
-            ax.plot(course.start.x, course.start.y, marker="o", color="tab:orange", markersize=5)
             free = sum(not e.collision for e in runs)
-            ax.set_title(f"{label} model, {name}: {free}/{len(runs)}", fontsize=8)
-            ax.set_aspect("equal")
-            ax.set_xticks([])
-            ax.set_yticks([])
+            draw_course(ax, load_course(name), f"{label} model, {name}: {free}/{len(runs)}")
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)

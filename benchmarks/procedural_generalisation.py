@@ -9,12 +9,14 @@ each final model is scored on layouts and courses it never saw:
 
 An episode is a success when it ends without a collision (``info["is_success"]``: 500 steps driven). Per run the
 success rate of each test set; per algorithm and test set, the IQM and mean of the runs' rates with 95%
-stratified-bootstrap CIs (rliable), and the probability that ADC's rate exceeds each other algorithm's.
+stratified-bootstrap CIs (rliable), and the probability that ADC's rate exceeds each other algorithm's. The paths
+of every run on the first ``--trajectory-layouts`` held-out layouts are kept (``trajectories.csv.gz``) and drawn.
 
 Training is ``sb3-adc benchmark``'s engine (resumable, one process per run, same seeds and evaluation for every
 algorithm); the runs go to ``benchmarks/runs/procedural_generalisation/`` (not committed), the tables to
-``benchmarks/results/procedural_generalisation/{name}/``, the figure to
-``docs/_static/benchmarks/procedural_generalisation_{name}.png``.
+``benchmarks/results/procedural_generalisation/{name}/``, the figures to
+``docs/_static/benchmarks/procedural_generalisation_{name}.png`` (success rates) and
+``docs/_static/benchmarks/procedural_trajectories_{name}.png`` (paths on held-out layouts).
 
 Usage::
 
@@ -22,7 +24,7 @@ Usage::
     python benchmarks/procedural_generalisation.py --env sb3_adc/LidarObstacleCourseNoisy-v1 --workers 2
     python benchmarks/procedural_generalisation.py --robot wheeled --workers 2   # the robot with dynamics
     python benchmarks/procedural_generalisation.py --quick                     # a smoke run
-    python benchmarks/procedural_generalisation.py --replot                    # redraw the figure, no training
+    python benchmarks/procedural_generalisation.py --replot                    # redraw the figures, no training
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ import json
 import os
 import platform
 import time
+from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -46,8 +49,9 @@ import sb3_adc
 from sb3_adc.config.loader import load_hyperparams
 from sb3_adc.experiment.benchmark import FINAL_CSV, BenchmarkSettings, RunOutcome, RunSpec, run_benchmark
 from sb3_adc.experiment.enjoy import load_model, load_run
-from sb3_adc.experiment.plots import plot_final_performance
+from sb3_adc.experiment.plots import plot_final_performance, plot_trajectories
 from sb3_adc.experiment.statistics import final_performance, probability_of_improvement
+from sb3_adc_envs.lidar_course import Course
 from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS
 
 ROOT = Path(__file__).resolve().parent
@@ -63,6 +67,7 @@ HELD_OUT = "held-out layouts"
 COURSE_JITTER = {"start_position_jitter": 0.1, "start_heading_jitter_deg": 10.0}
 #: Keywords of the training entries that only vary the start during training.
 TRAINING_ONLY = ("start_position_jitter", "start_heading_jitter_deg")
+TRAJECTORIES_CSV = "trajectories.csv.gz"
 
 
 def report(outcome: RunOutcome, done: int, total: int) -> None:
@@ -82,10 +87,42 @@ def episode_success(model: Any, env: gym.Env, **reset: Any) -> bool:
             return bool(info["is_success"])
 
 
+def cpu_model() -> str:
+    """The processor's model name (float rounding, hence a run's exact digits, can depend on it)."""
+    try:
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
+    except OSError:
+        return platform.processor()
+    return next((line.split(":", 1)[1].strip() for line in lines if line.startswith("model name")), platform.processor())
+
+
+def layout_name(layout_seed: int) -> str:
+    return f"layout {layout_seed}"
+
+
+def held_out_course(env_id: str, env_kwargs: dict[str, Any], layout_seed: int) -> Course:
+    """The procedural course of a held-out layout seed, as the environment builds it for its robot."""
+    env = gym.make(env_id, **{**env_kwargs, "layout_seeds": TEST_LAYOUT_SEEDS})
+    env.reset(options={"layout_seed": layout_seed})
+    course = env.unwrapped.course  # type: ignore[attr-defined]
+    env.close()
+    return course
+
+
 def score_run(
-    run_dir: str, algo: str, env_id: str, seed: int, courses: list[str], course_episodes: int, n_layouts: int
-) -> list[dict[str, Any]]:
-    """The success rate of a finished run's final model on the held-out layouts and on each course file."""
+    run_dir: str,
+    algo: str,
+    env_id: str,
+    seed: int,
+    courses: list[str],
+    course_episodes: int,
+    n_layouts: int,
+    trajectory_layouts: int,
+) -> tuple[list[dict[str, Any]], list[pd.DataFrame]]:
+    """
+    The success rate of a finished run's final model on the held-out layouts and on each course file, and its
+    paths on the first ``trajectory_layouts`` held-out layouts.
+    """
     th.set_num_threads(1)
     _, config, layout = load_run(run_dir)
     if config.normalize is not None or config.frame_stack is not None:
@@ -107,13 +144,32 @@ def score_run(
 
     env = config.wrap_env(gym.make(env_id, **{**kwargs, "layout_seeds": TEST_LAYOUT_SEEDS}))
     first = TEST_LAYOUT_SEEDS[0]
-    rows.append(row(HELD_OUT, [episode_success(model, env, options={"layout_seed": first + k}) for k in range(n_layouts)]))
+    successes, paths = [], []
+    for k in range(n_layouts):
+        # Seeded like the course episodes: the noisy variant's observation noise is drawn from the episode's seed.
+        successes.append(episode_success(model, env, seed=first + k, options={"layout_seed": first + k}))
+        if k < trajectory_layouts:
+            path = env.unwrapped.trajectory  # type: ignore[attr-defined]
+            paths.append(
+                pd.DataFrame(
+                    {
+                        "algo": algo,
+                        "seed": seed,
+                        "course": layout_name(first + k),
+                        "step": np.arange(len(path)),
+                        "x": path[:, 0].round(3),
+                        "y": path[:, 1].round(3),
+                        "success": successes[-1],
+                    }
+                )
+            )
+    rows.append(row(HELD_OUT, successes))
     env.close()
     for course in courses:
         env = config.wrap_env(gym.make(env_id, **{**kwargs, **COURSE_JITTER, "course": course}))
         rows.append(row(course, [episode_success(model, env, seed=k) for k in range(course_episodes)]))
         env.close()
-    return rows
+    return rows, paths
 
 
 def robot_overrides(algo: str, env_id: str, robot: str) -> dict[str, Any]:
@@ -136,6 +192,15 @@ def plot(scores: pd.DataFrame, path: Path, reps: int) -> pd.DataFrame:
     return performance
 
 
+def plot_paths(trajectories: pd.DataFrame, env_id: str, robot: str, path: Path) -> None:
+    """Every run's path on the held-out layouts of ``trajectories``, one row per algorithm."""
+    env_kwargs = {} if robot == "kinematic" else {"robot": robot}
+    seeds = sorted({int(name.split()[-1]) for name in trajectories["course"]})
+    courses = {layout_name(seed): held_out_course(env_id, env_kwargs, seed) for seed in seeds}
+    title = f"{env_id} ({robot} robot): final models on held-out layouts, one path per run"
+    plot_trajectories(trajectories, courses, str(path), title=title)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--env", default="sb3_adc/LidarObstacleCourse-v1", help="the procedural environment id")
@@ -144,27 +209,34 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=1, help="parallel runs and scorings")
     parser.add_argument("--course-episodes", type=int, default=10, help="jittered episodes per course file")
     parser.add_argument("--reps", type=int, default=5000, help="bootstrap replications")
+    parser.add_argument("--trajectory-layouts", type=int, default=4, help="held-out layouts whose paths are drawn")
     parser.add_argument("--quick", action="store_true", help="smoke run: 2 seeds, 600 steps, 3 layouts, 1 course")
     parser.add_argument("--replot", action="store_true", help="redraw the figure from the committed success.csv")
     args = parser.parse_args()
-    if args.workers < 1 or args.course_episodes < 1 or args.reps < 1:
-        parser.error("--workers, --course-episodes and --reps must be >= 1")
+    if min(args.workers, args.course_episodes, args.reps, args.trajectory_layouts) < 1:
+        parser.error("--workers, --course-episodes, --reps and --trajectory-layouts must be >= 1")
     th.set_num_threads(1)
     name = args.env.split("/")[-1] + ("" if args.robot == "kinematic" else f"_{args.robot}") + ("_quick" if args.quick else "")
     seeds, n_timesteps, n_layouts, reps = SEEDS, None, len(range(*TEST_LAYOUT_SEEDS)), args.reps
     courses = sorted(path.stem for path in COURSES_DIR.glob("*.yml"))
+    trajectory_layouts = args.trajectory_layouts
     if args.quick:
         seeds, n_timesteps, n_layouts, courses, reps = seeds[:2], 600, 3, courses[:1], 200
+    trajectory_layouts = min(trajectory_layouts, n_layouts)
     folder = RUNS_DIR / name
     output = RESULTS_DIR / name
     if args.replot:
         figure = DOCS_STATIC / f"procedural_generalisation_{name}.png"
         plot(pd.read_csv(output / "success.csv"), figure, reps)
         print(f"wrote {figure}")
+        if (output / TRAJECTORIES_CSV).exists():
+            paths_figure = DOCS_STATIC / f"procedural_trajectories_{name}.png"
+            plot_paths(pd.read_csv(output / TRAJECTORIES_CSV), args.env, args.robot, paths_figure)
+            print(f"wrote {paths_figure}")
         return
     output.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    finals = []
+    finals, statuses = [], Counter[str]()
     for algo in args.algos:
         settings = BenchmarkSettings(
             algos=[algo],
@@ -178,10 +250,17 @@ def main() -> None:
             device="cpu",
         )
         result = run_benchmark(settings, workers=args.workers, report=report)
+        statuses.update(outcome.status for outcome in result.outcomes)
         if result.failures:
             raise SystemExit(f"{len(result.failures)} runs of {algo} failed; re-run to retry them")
         finals.append(pd.read_csv(result.tables[FINAL_CSV]))
-    training_s = time.perf_counter() - start
+    training_s, training_workers = round(time.perf_counter() - start, 1), args.workers
+    previous = output / "metadata.json"
+    if not statuses["trained"] + statuses["resumed"] and previous.exists():
+        # Every run was finished before: the training time is that of the invocation that trained them.
+        earlier = json.loads(previous.read_text())
+        training_s = earlier.get("training_wall_time_s", training_s)
+        training_workers = earlier.get("training_workers", earlier.get("workers", training_workers))
     pd.concat(finals, ignore_index=True).to_csv(output / FINAL_CSV, index=False)
     jobs = [
         (
@@ -192,16 +271,21 @@ def main() -> None:
             courses,
             args.course_episodes,
             n_layouts,
+            trajectory_layouts,
         )
         for algo in args.algos
         for seed in seeds
     ]
     start = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        rows = [row for rows in pool.map(score_run, *zip(*jobs, strict=True)) for row in rows]
+        scored = list(pool.map(score_run, *zip(*jobs, strict=True)))
     scoring_s = time.perf_counter() - start
-    scores = pd.DataFrame(rows)
+    scores = pd.DataFrame([row for rows, _ in scored for row in rows])
     scores.to_csv(output / "success.csv", index=False)
+    trajectories = pd.concat([path for _, paths in scored for path in paths], ignore_index=True)
+    trajectories.to_csv(output / TRAJECTORIES_CSV, index=False)
+    paths_figure = output / "trajectories.png"
+    plot_paths(trajectories, args.env, args.robot, paths_figure)
     figure = output / "success_rates.png"
     performance = plot(scores, figure, reps)
     performance.rename(columns={"env": "test_set"}).to_csv(output / "success_rates.csv", index=False)
@@ -211,6 +295,7 @@ def main() -> None:
     if not args.quick:
         DOCS_STATIC.mkdir(parents=True, exist_ok=True)
         os.replace(figure, DOCS_STATIC / f"procedural_generalisation_{name}.png")
+        os.replace(paths_figure, DOCS_STATIC / f"procedural_trajectories_{name}.png")
     lines = ["| test set | algorithm | runs | success rate IQM [95% CI] | mean [95% CI] |", "|---|---|---:|---|---|"]
     for row in performance.itertuples(index=False):
         lines.append(
@@ -226,10 +311,13 @@ def main() -> None:
         "n_timesteps": n_timesteps or "each entry's n_timesteps",
         "hyperparams": "shipped (hyperparams/{algo}.yml)",
         "held_out_layouts": [TEST_LAYOUT_SEEDS[0], TEST_LAYOUT_SEEDS[0] + n_layouts - 1],
+        "trajectory_layouts": trajectory_layouts,
         "courses": courses,
         "course_episodes": args.course_episodes,
         "course_start_jitter": COURSE_JITTER,
-        "training_wall_time_s": round(training_s, 1),
+        "training_wall_time_s": training_s,
+        "training_workers": training_workers,
+        "runs_this_invocation": dict(sorted(statuses.items())),
         "scoring_wall_time_s": round(scoring_s, 1),
         "workers": args.workers,
         "bootstrap_reps": reps,
@@ -238,6 +326,7 @@ def main() -> None:
         "torch": th.__version__,
         "python": platform.python_version(),
         "cpu_count": os.cpu_count(),
+        "cpu": cpu_model(),
     }
     (output / "metadata.json").write_text(json.dumps(metadata, indent=2) + "\n")
     print("\n".join(lines))

@@ -1,0 +1,54 @@
+"""The committed procedural-generalisation results agree with themselves and with the environment: the drawn paths
+belong to the scored runs, start at each held-out layout's start pose, and last as long as their outcome allows."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS
+
+ROOT = Path(__file__).resolve().parents[2]
+RESULTS = ROOT / "benchmarks" / "results" / "procedural_generalisation"
+FOLDERS = sorted(path.parent for path in RESULTS.glob("*/trajectories.csv.gz"))
+#: Steps of an episode that ends without a collision (the environment's time limit).
+EPISODE_STEPS = 500
+
+
+@pytest.mark.skipif(not FOLDERS, reason="no committed trajectories")
+@pytest.mark.parametrize("folder", FOLDERS, ids=[folder.name for folder in FOLDERS])
+def test_committed_paths_match_the_scored_runs_and_the_layouts(folder):
+    import gymnasium as gym
+
+    import sb3_adc  # noqa: F401 (registers the environments)
+
+    metadata = json.loads((folder / "metadata.json").read_text())
+    scores = pd.read_csv(folder / "success.csv")
+    trajectories = pd.read_csv(folder / "trajectories.csv.gz")
+    held_out = scores[scores["test_set"] == "held-out layouts"]
+    runs = set(trajectories[["algo", "seed"]].itertuples(index=False, name=None))
+    assert runs == set(held_out[["algo", "seed"]].itertuples(index=False, name=None))
+    assert len(runs) == len(metadata["algos"]) * len(metadata["seeds"])
+    layouts = [f"layout {TEST_LAYOUT_SEEDS[0] + k}" for k in range(metadata["trajectory_layouts"])]
+    assert sorted(trajectories["course"].unique()) == layouts
+    robot = {} if metadata["robot"] == "kinematic" else {"robot": metadata["robot"]}
+    for name, on_layout in trajectories.groupby("course"):
+        env = gym.make(metadata["env"], layout_seeds=TEST_LAYOUT_SEEDS, **robot)
+        env.reset(options={"layout_seed": int(name.split()[-1])})
+        start = env.unwrapped.course.start
+        env.close()
+        for (algo, seed), path in on_layout.groupby(["algo", "seed"]):
+            path = path.sort_values("step")
+            assert np.allclose(path[["x", "y"]].iloc[0], [start.x, start.y], atol=1e-3), (algo, seed, name)
+            success = bool(path["success"].iloc[0])
+            # A collision-free episode lasts the full time limit (its path: the start and one position a step); a
+            # collision ends it at the latest on the last step.
+            assert len(path) == EPISODE_STEPS + 1 if success else len(path) <= EPISODE_STEPS + 1, (algo, seed, name)
+    # Every run's successes on the drawn layouts are at most its successes on all held-out layouts.
+    drawn = trajectories.groupby(["algo", "seed", "course"])["success"].first().groupby(["algo", "seed"]).sum()
+    for row in held_out.itertuples(index=False):
+        assert drawn.loc[(row.algo, row.seed)] <= row.successes
