@@ -4,6 +4,9 @@ The walls and obstacles are drawn on a grid (Pillow), and a Euclidean distance t
 where the robot's centre fits, more than its radius (plus one cell) from everything. The corridor is then cut
 across at the start position, and the robot can drive round if the cells just ahead of the cut and those just
 behind it are still connected: the only way from one to the other goes round the loop.
+
+:func:`kinematic_reach` asks more: whether the robot can *steer* past the obstacles with its turning radius, by a
+search over steering actions on the same grid.
 """
 
 from __future__ import annotations
@@ -144,3 +147,65 @@ def _labels_near(
 ) -> set[int]:
     near = np.hypot(*(centres - point).T) <= _SEED_RADIUS
     return {int(label) for label in np.unique(labels[rows[near], columns[near]])}
+
+
+def kinematic_reach(
+    course: Course,
+    robot_radius: float,
+    speed: float,
+    max_steer: float,
+    n_steps: int,
+    n_actions: int = 5,
+    max_states: int = 4000,
+    resolution: float = GRID_RESOLUTION,
+) -> int:
+    """
+    How many steps the kinematic robot of the lidar course can drive from the course's start pose without a
+    collision, at most ``n_steps``: a breadth-first search over ``n_actions`` evenly spaced steering actions
+    (``-1`` to ``1``), the robot turning, then driving ``speed`` metres, as
+    :meth:`~sb3_adc_envs.lidar_course.env.LidarObstacleCourseEnv.step` does.
+
+    :func:`robot_fits` asks whether a round robot fits through every gap; this asks whether it can *steer* through
+    them, with its turning radius ``speed / max_steer``. A layout whose search stops short of ``n_steps`` has no
+    collision-free episode for any policy of the searched actions (within the grid's resolution; the grid keeps
+    one cell of margin, so a path that needs less may be missed). The states of each step are merged per grid cell
+    and heading step and, above ``max_states``, thinned evenly in that order, so ``n_steps`` reached is proof of a
+    path and a shorter reach is strong evidence that none exists.
+
+    :param course: The course (a procedural layout: ``env.unwrapped.course``)
+    :param robot_radius: Radius of the robot [m]
+    :param speed: Distance driven per step [m]
+    :param max_steer: Largest turn per step [rad]
+    :param n_steps: Steps of an episode (the time limit)
+    :param n_actions: Steering actions searched (odd, so that driving straight is one of them)
+    :param max_states: States kept per step
+    :param resolution: Side of a grid cell [m]
+    :return: The number of steps of the longest collision-free drive found, ``n_steps`` when a whole episode is
+        possible
+    """
+    if n_actions < 3 or n_actions % 2 == 0:
+        raise ValueError(f"`n_actions` must be an odd integer >= 3, got {n_actions!r}.")
+    free, grid = robot_fits(course, robot_radius, resolution)
+    steers = np.linspace(-max_steer, max_steer, n_actions)
+    heading_step = max_steer / ((n_actions - 1) // 2)
+    x = np.array([course.start.x])
+    y = np.array([course.start.y])
+    heading = np.array([course.start.heading])
+    for step in range(n_steps):
+        new_heading = (heading[:, None] + steers[None, :]).ravel()
+        new_x = np.repeat(x, n_actions) + speed * np.cos(new_heading)
+        new_y = np.repeat(y, n_actions) + speed * np.sin(new_heading)
+        rows = np.floor((grid.y_max - new_y) / grid.resolution).astype(np.int64)
+        columns = np.floor((new_x - grid.x_min) / grid.resolution).astype(np.int64)
+        inside = (rows >= 0) & (rows < free.shape[0]) & (columns >= 0) & (columns < free.shape[1])
+        clear = np.zeros_like(inside)
+        clear[inside] = free[rows[inside], columns[inside]]
+        if not clear.any():
+            return step
+        turns = np.round(np.remainder(new_heading[clear], 2.0 * math.pi) / heading_step).astype(np.int64)
+        keys = np.stack([rows[clear], columns[clear], turns], axis=1)
+        _, first = np.unique(keys, axis=0, return_index=True)
+        if len(first) > max_states:
+            first = first[np.linspace(0, len(first) - 1, max_states).round().astype(np.int64)]
+        x, y, heading = new_x[clear][first], new_y[clear][first], new_heading[clear][first]
+    return n_steps

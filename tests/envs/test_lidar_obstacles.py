@@ -11,6 +11,7 @@ import yaml
 
 from sb3_adc_envs.lidar_course import CourseError, LidarObstacleCourseEnv, load_course, shipped_courses
 from sb3_adc_envs.lidar_course.course import course_from_dict
+from sb3_adc_envs.lidar_course.passability import kinematic_reach
 
 OBSTACLE_COURSES = ("unseen_posts", "unseen_slalom", "unseen_stubs")
 STRAIGHT = np.zeros(1, dtype=np.float32)
@@ -179,3 +180,49 @@ def test_shipped_courses_with_obstacles_load_fit_the_robot_and_are_unseen():
     shapes = {obstacle.shape for name in OBSTACLE_COURSES for obstacle in load_course(name).obstacles}
     assert shapes == {"box", "cylinder", "wall"}
     assert not load_course("training").obstacles  # the paper's training course stays empty
+
+
+def stub_ahead(distance: float) -> dict:
+    # A wall stub across the bottom straight from the lower wall to y = 0.5, `distance` m ahead of the start (3, 0):
+    # a 0.5 m gap at the top, wider than the robot's 0.3 m.
+    return loop_with({"shape": "wall", "position": [3.0 + distance, -0.275], "length": 1.55, "yaw_deg": 90})
+
+
+@pytest.mark.parametrize("n_actions", [3, 5])
+def test_kinematic_reach_tells_a_gap_the_robot_can_steer_through_from_one_it_only_fits_through(n_actions):
+    robot = {"robot_radius": 0.15, "speed": 0.1, "max_steer": math.radians(6.0), "n_actions": n_actions, "max_states": 500}
+    near, far = course_from_dict(stub_ahead(1.1)), course_from_dict(stub_ahead(4.1))
+    for course in (near, far):
+        course.check_robot_fits(0.15)  # both gaps are wide enough for the robot
+    # Far ahead, the robot has room to swerve to the gap and straighten before the top wall: it gets past the
+    # stub, round the first corner and up the side (120 steps). 1.1 m ahead, its 0.95 m turning radius cannot
+    # shift it 0.65 m sideways and back in time: every steering sequence crashes at the stub.
+    assert kinematic_reach(far, n_steps=120, **robot) == 120
+    reach = kinematic_reach(near, n_steps=120, **robot)
+    assert 5 <= reach <= 20
+    # The empty loop is drivable; the obstacle-free episodes of the environment agree.
+    assert kinematic_reach(course_from_dict(LOOP), n_steps=120, **robot) == 120
+
+
+def test_kinematic_reach_agrees_with_the_environment_s_collisions():
+    # Driving straight at the stub is one of the searched drives: the search's longest drive lasts at least as long
+    # as the environment lets the straight one (a step less at most, for the search grid's one-cell margin), and
+    # swerving towards the gap buys only a few steps more.
+    course = course_from_dict(stub_ahead(1.1))
+    env = LidarObstacleCourseEnv(course=course)
+    env.reset(seed=0)
+    steps = 0
+    while True:
+        steps += 1
+        _, _, terminated, _, info = env.step(STRAIGHT)
+        if terminated:
+            break
+    env.close()
+    assert info["collision"]
+    reach = kinematic_reach(course, 0.15, 0.1, math.radians(6.0), n_steps=120, max_states=500)
+    assert steps - 2 <= reach <= steps + 8
+
+
+def test_kinematic_reach_checks_its_actions():
+    with pytest.raises(ValueError, match="n_actions"):
+        kinematic_reach(course_from_dict(LOOP), 0.15, 0.1, 0.1, n_steps=10, n_actions=4)
