@@ -100,13 +100,15 @@ def layout_name(layout_seed: int) -> str:
     return f"layout {layout_seed}"
 
 
-def held_out_course(env_id: str, env_kwargs: dict[str, Any], layout_seed: int) -> Course:
-    """The procedural course of a held-out layout seed, as the environment builds it for its robot."""
+def held_out_courses(env_id: str, env_kwargs: dict[str, Any], layout_seeds: list[int]) -> dict[str, Course]:
+    """The procedural courses of held-out layout seeds by name, as one environment builds them for its robot."""
     env = gym.make(env_id, **{**env_kwargs, "layout_seeds": TEST_LAYOUT_SEEDS})
-    env.reset(options={"layout_seed": layout_seed})
-    course = env.unwrapped.course  # type: ignore[attr-defined]
+    courses = {}
+    for layout_seed in layout_seeds:
+        env.reset(options={"layout_seed": layout_seed})
+        courses[layout_name(layout_seed)] = env.unwrapped.course  # type: ignore[attr-defined]
     env.close()
-    return course
+    return courses
 
 
 def score_run(
@@ -196,7 +198,7 @@ def plot_paths(trajectories: pd.DataFrame, env_id: str, robot: str, path: Path) 
     """Every run's path on the held-out layouts of ``trajectories``, one row per algorithm."""
     env_kwargs = {} if robot == "kinematic" else {"robot": robot}
     seeds = sorted({int(name.split()[-1]) for name in trajectories["course"]})
-    courses = {layout_name(seed): held_out_course(env_id, env_kwargs, seed) for seed in seeds}
+    courses = held_out_courses(env_id, env_kwargs, seeds)
     title = f"{env_id} ({robot} robot): final models on held-out layouts, one path per run"
     plot_trajectories(trajectories, courses, str(path), title=title)
 
