@@ -23,6 +23,9 @@ PROCEDURAL = "procedural"
 TRAIN_LAYOUT_SEEDS = (0, 1_000_000)
 #: Held-out layout seeds ``[start, stop)`` for evaluation, disjoint from :data:`TRAIN_LAYOUT_SEEDS`.
 TEST_LAYOUT_SEEDS = (1_000_000, 1_000_100)
+#: Validation layout seeds ``[start, stop)``, disjoint from both: for choices made while tuning (budget, settings),
+#: so that :data:`TEST_LAYOUT_SEEDS` stays unseen by every choice.
+VALIDATION_LAYOUT_SEEDS = (2_000_000, 2_000_100)
 
 # Initial capacity of the path buffer (positions); it doubles when full.
 _PATH_CAPACITY = 512

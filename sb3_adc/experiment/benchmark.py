@@ -47,7 +47,7 @@ EPISODES_CSV = "episodes.csv"
 FINAL_CSV = "final.csv"
 
 #: Run settings that do not change a run's results: a run on disk may differ from the grid in them.
-_NEUTRAL_SETTINGS = frozenset({"log_folder", "run_dir", "device", "verbose", "progress_bar"})
+_NEUTRAL_SETTINGS = frozenset({"log_folder", "run_dir", "device", "verbose", "progress_bar", "keep_checkpoints"})
 #: Run settings compared through the resolved hyperparameters they produce (``config.yml``), not as given.
 _RESOLVED_SETTINGS = frozenset({"conf_file", "overrides", "env_kwargs", "n_timesteps"})
 _RUN_FOLDER = re.compile(r"^.+_seed(\d+)$")
@@ -112,6 +112,8 @@ class BenchmarkSettings:
     :param eval_episodes: Episodes per periodic evaluation
     :param final_eval_episodes: Episodes of the final evaluation
     :param device: PyTorch device of the runs
+    :param keep_checkpoints: How many of each run's latest checkpoints to keep (one per evaluation; a budget sweep
+        keeps them all to score each)
     """
 
     algos: list[str]
@@ -125,6 +127,7 @@ class BenchmarkSettings:
     eval_episodes: int = 5
     final_eval_episodes: int = 10
     device: str = "cpu"
+    keep_checkpoints: int = 2
 
     def grid(self) -> list[RunSpec]:
         """Every (algorithm, environment, seed) combination, in that order."""
@@ -150,6 +153,7 @@ class BenchmarkSettings:
             eval_episodes=self.eval_episodes,
             final_eval_episodes=self.final_eval_episodes,
             device=self.device,
+            keep_checkpoints=self.keep_checkpoints,
             progress_bar=False,
         )
 

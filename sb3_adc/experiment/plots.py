@@ -127,16 +127,17 @@ def _plot_mean_curves(curves: pd.DataFrame, path: str, x: str, xlabel: str, ylab
     return path
 
 
-def plot_learning_curves(curves: pd.DataFrame, path: str, title: str = "") -> str:
+def plot_learning_curves(curves: pd.DataFrame, path: str, title: str = "", ylabel: str = "evaluation return") -> str:
     """
     One panel per environment: mean evaluation return across runs, with its 95% bootstrap CI, per algorithm.
 
     :param curves: The output of :func:`~sb3_adc.experiment.statistics.learning_curves`
     :param path: The PNG file
     :param title: The figure's title
+    :param ylabel: What the curves' ``mean_return`` holds (a success rate, for instance), with its unit
     """
     title = title or "Mean evaluation return across runs (95% bootstrap CI)"
-    return _plot_mean_curves(curves, path, "timesteps", "timesteps", "evaluation return", title)
+    return _plot_mean_curves(curves, path, "timesteps", "timesteps", ylabel, title)
 
 
 def plot_wallclock_curves(curves: pd.DataFrame, path: str) -> str:

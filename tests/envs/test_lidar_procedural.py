@@ -8,7 +8,7 @@ import pytest
 
 import sb3_adc_envs  # noqa: F401 (registers the environments)
 from sb3_adc_envs.lidar_course import LidarObstacleCourseEnv
-from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS, TRAIN_LAYOUT_SEEDS
+from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS, TRAIN_LAYOUT_SEEDS, VALIDATION_LAYOUT_SEEDS
 from sb3_adc_envs.lidar_course.passability import blocked_corridor_point
 from sb3_adc_envs.lidar_course.procedural import CourseGenerator
 from sb3_adc_envs.registration import V1_N_RAYS
@@ -86,6 +86,7 @@ def test_reset_seed_gives_the_same_layout_and_observations():
 
 def test_layouts_are_drawn_from_the_training_range_and_held_out_seeds_are_disjoint():
     assert TRAIN_LAYOUT_SEEDS[1] <= TEST_LAYOUT_SEEDS[0]
+    assert TEST_LAYOUT_SEEDS[1] <= VALIDATION_LAYOUT_SEEDS[0]
     env = LidarObstacleCourseEnv(course="procedural")
     seen = set()
     env.reset(seed=0)

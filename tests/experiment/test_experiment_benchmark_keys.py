@@ -6,7 +6,15 @@ import pandas as pd
 import pytest
 
 from sb3_adc.cli import main
-from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSettingsMismatch, check_runs_on_disk, runs_on_disk
+from sb3_adc.experiment.benchmark import (
+    BenchmarkSettings,
+    RunSettingsMismatch,
+    RunSpec,
+    check_runs_on_disk,
+    run_benchmark,
+    runs_on_disk,
+)
+from sb3_adc.experiment.layout import RunLayout
 
 TINY_DDPG = """\
 default:
@@ -95,3 +103,25 @@ def test_the_same_settings_pass_the_check_and_runs_on_disk_are_found(bench):
     with pytest.raises(RunSettingsMismatch) as info:
         check_runs_on_disk(settings)
     assert list(info.value.differences) == [str(folder / "ddpg" / "Pendulum-v1_seed1")]
+
+
+def test_keep_checkpoints_keeps_every_checkpoint_and_does_not_change_what_a_run_is(bench, tmp_path):
+    folder, _ = bench
+    settings = BenchmarkSettings(
+        algos=["ddpg"],
+        env_ids=["Pendulum-v1"],
+        seeds=[0],
+        log_folder=str(folder),
+        conf_folder=str(folder.parent / "conf"),
+        eval_freq=50,
+        eval_episodes=1,
+        final_eval_episodes=1,
+        keep_checkpoints=4,
+    )
+    check_runs_on_disk(settings)  # the runs on disk kept 2 checkpoints: the same runs
+    settings.log_folder, settings.eval_freq, settings.seeds = str(tmp_path), 25, [3]
+    run_benchmark(settings, workers=1)
+    run_dir = RunSpec("ddpg", "Pendulum-v1", 3).run_dir(str(tmp_path))
+    steps = [point.timesteps for point in RunLayout(run_dir, "Pendulum-v1").checkpoints()]
+    assert steps == [25, 50, 75, 100]
+    assert len(RunLayout(RunSpec("ddpg", "Pendulum-v1", 0).run_dir(str(folder)), "Pendulum-v1").checkpoints()) == 2

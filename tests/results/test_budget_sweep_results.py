@@ -1,0 +1,52 @@
+"""The committed budget sweeps agree with themselves and with the protocol: tuning seeds only, validation layouts
+disjoint from the training and test layouts, one row per run and checkpoint, and the curves and summary rebuilt
+from the per-checkpoint rows."""
+
+from __future__ import annotations
+
+import importlib
+import json
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS, TRAIN_LAYOUT_SEEDS, VALIDATION_LAYOUT_SEEDS
+
+ROOT = Path(__file__).resolve().parents[2]
+RESULTS = ROOT / "benchmarks" / "results" / "budget_sweep"
+FOLDERS = sorted(path.parent for path in RESULTS.glob("*/sweep.csv"))
+
+
+@pytest.mark.skipif(not FOLDERS, reason="no committed budget sweep")
+@pytest.mark.parametrize("folder", FOLDERS, ids=[folder.name for folder in FOLDERS])
+def test_committed_sweep_follows_the_protocol_and_rebuilds(folder, monkeypatch):
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    budget_sweep = importlib.import_module("budget_sweep")
+    metadata = json.loads((folder / "metadata.json").read_text())
+    sweep = pd.read_csv(folder / "sweep.csv")
+    # Tuning seeds only: the reporting seeds (1000+) stay unseen.
+    assert set(sweep["seed"]) == set(metadata["seeds"])
+    assert max(metadata["seeds"]) < 5
+    # Validation layouts: after the training and held-out ranges.
+    first, last = metadata["validation_layouts"]
+    assert VALIDATION_LAYOUT_SEEDS[0] == first <= last < VALIDATION_LAYOUT_SEEDS[1]
+    assert TRAIN_LAYOUT_SEEDS[1] <= TEST_LAYOUT_SEEDS[1] <= first
+    assert (sweep["episodes"] == last - first + 1).all()
+    assert (sweep["success_rate"] == sweep["successes"] / sweep["episodes"]).all()
+    # One row per configuration, seed and checkpoint; the checkpoints every tenth of the budget.
+    every = metadata["checkpoint_every"]
+    steps = list(range(every, metadata["n_timesteps"] + 1, every))
+    assert set(sweep["config"]) == set(metadata["configs"])
+    for (config, seed), rows in sweep.groupby(["config", "seed"]):
+        assert sorted(rows["timesteps"]) == steps, (config, seed)
+    # The curves and the summary rebuild from the rows.
+    rebuilt = budget_sweep.summarise(sweep, metadata["bootstrap_reps"])
+    committed = pd.read_csv(folder / "curves.csv")
+    pd.testing.assert_frame_equal(rebuilt, committed, check_exact=False, rtol=1e-9, check_dtype=False)
+    assert (folder / "summary.md").read_text() == budget_sweep.markdown(committed)
+    best = committed.loc[committed["mean"].idxmax()]
+    assert metadata["best"] == {"config": best["config"], "timesteps": int(best["timesteps"]), "mean": round(best["mean"], 3)}
+    for name in ("budget_sweep", "procedural_generalisation"):
+        sys.modules.pop(name, None)
