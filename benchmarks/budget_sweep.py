@@ -27,8 +27,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import time
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
@@ -38,13 +36,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pandas as pd
-import stable_baselines3
 import torch as th
-from procedural_generalisation import TRAINING_ONLY, cpu_model, episode_success, report
+from procedural_generalisation import episode_success, load_for_scoring, machine_metadata, report, training_time
 
-import sb3_adc
 from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSpec, run_benchmark
-from sb3_adc.experiment.enjoy import load_model, load_run
+from sb3_adc.experiment.layout import RunLayout
 from sb3_adc.experiment.plots import plot_learning_curves
 from sb3_adc.experiment.statistics import learning_curves
 from sb3_adc_envs.lidar_course.env import VALIDATION_LAYOUT_SEEDS
@@ -68,11 +64,7 @@ def config_name(gamma: float | None) -> str:
 def score_checkpoint(run_dir: str, config: str, seed: int, timesteps: int, model_path: str, n_layouts: int) -> dict[str, Any]:
     """The success rate of one checkpoint on the first ``n_layouts`` validation layouts, one episode each."""
     th.set_num_threads(1)
-    settings, entry, _ = load_run(run_dir)
-    if entry.normalize is not None or entry.frame_stack is not None:
-        raise SystemExit(f"{run_dir}: scoring supports entries without `normalize` and `frame_stack`")
-    model = load_model(entry, model_path, device="cpu")
-    kwargs = {key: value for key, value in entry.env_kwargs.items() if key not in TRAINING_ONLY}
+    settings, entry, model, kwargs = load_for_scoring(run_dir, model_path)
     env = entry.wrap_env(gym.make(settings.env_id, **{**kwargs, "layout_seeds": VALIDATION_LAYOUT_SEEDS}))
     first = VALIDATION_LAYOUT_SEEDS[0]
     successes = [episode_success(model, env, seed=first + k, options={"layout_seed": first + k}) for k in range(n_layouts)]
@@ -181,12 +173,11 @@ def main() -> None:
             raise SystemExit(f"{len(result.failures)} runs of {config} failed; re-run to retry them")
         for seed in seeds:
             run_dir = RunSpec(args.algo, args.env, seed).run_dir(settings.log_folder)
-            _, _, layout = load_run(run_dir)
-            checkpoints = layout.checkpoints()
+            checkpoints = RunLayout(run_dir, args.env).checkpoints()
             if len(checkpoints) < N_CHECKPOINTS:
                 raise SystemExit(f"{run_dir}: {len(checkpoints)} checkpoints, expected {N_CHECKPOINTS}")
             jobs += [(run_dir, config, seed, point.timesteps, point.model, n_layouts) for point in checkpoints]
-    training_s = round(time.perf_counter() - start, 1)
+    training_s, training_workers = training_time(output, statuses, time.perf_counter() - start, args.workers)
     start = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         sweep = pd.DataFrame(list(pool.map(score_checkpoint, *zip(*jobs, strict=True))))
@@ -212,15 +203,11 @@ def main() -> None:
         "best": {"config": best["config"], "timesteps": int(best["timesteps"]), "mean": round(float(best["mean"]), 3)},
         "runs_this_invocation": dict(sorted(statuses.items())),
         "training_wall_time_s": training_s,
+        "training_workers": training_workers,
         "scoring_wall_time_s": scoring_s,
         "workers": args.workers,
         "bootstrap_reps": reps,
-        "sb3_adc": sb3_adc.__version__,
-        "stable_baselines3": stable_baselines3.__version__,
-        "torch": th.__version__,
-        "python": platform.python_version(),
-        "cpu_count": os.cpu_count(),
-        "cpu": cpu_model(),
+        **machine_metadata(),
     }
     (output / "metadata.json").write_text(json.dumps(metadata, indent=2) + "\n")
     print(markdown(curves))

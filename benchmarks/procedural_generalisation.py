@@ -46,10 +46,12 @@ import stable_baselines3
 import torch as th
 
 import sb3_adc
+from sb3_adc.config.experiment_config import ExperimentConfig
 from sb3_adc.config.loader import load_hyperparams
 from sb3_adc.experiment.benchmark import FINAL_CSV, BenchmarkSettings, RunOutcome, RunSpec, run_benchmark
 from sb3_adc.experiment.enjoy import load_model, load_run
 from sb3_adc.experiment.plots import plot_final_performance, plot_trajectories
+from sb3_adc.experiment.settings import TrainSettings
 from sb3_adc.experiment.statistics import final_performance, probability_of_improvement
 from sb3_adc_envs.lidar_course import Course
 from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS
@@ -96,6 +98,47 @@ def cpu_model() -> str:
     return next((line.split(":", 1)[1].strip() for line in lines if line.startswith("model name")), platform.processor())
 
 
+def machine_metadata() -> dict[str, Any]:
+    """The versions and the machine behind a results folder, the last keys of its ``metadata.json``."""
+    return {
+        "sb3_adc": sb3_adc.__version__,
+        "stable_baselines3": stable_baselines3.__version__,
+        "torch": th.__version__,
+        "python": platform.python_version(),
+        "cpu_count": os.cpu_count(),
+        "cpu": cpu_model(),
+    }
+
+
+def load_for_scoring(
+    run_dir: str, model_path: str | None = None
+) -> tuple[TrainSettings, ExperimentConfig, Any, dict[str, Any]]:
+    """
+    A finished run's settings, entry and model (its final one, or the zip ``model_path``, on the CPU), and the
+    ``gym.make`` keywords of its entry without the training-only start jitter.
+    """
+    settings, config, layout = load_run(run_dir)
+    if config.normalize is not None or config.frame_stack is not None:
+        raise SystemExit(f"{run_dir}: scoring supports entries without `normalize` and `frame_stack`")
+    model = load_model(config, model_path or layout.final_model, device="cpu")
+    kwargs = {key: value for key, value in config.env_kwargs.items() if key not in TRAINING_ONLY}
+    return settings, config, model, kwargs
+
+
+def training_time(output: Path, statuses: Counter[str], seconds: float, workers: int) -> tuple[float, int]:
+    """
+    The training wall-clock time and workers to record in ``output/metadata.json``: this invocation's, or, when
+    every run was finished before, those of the invocation that trained them.
+    """
+    previous = output / "metadata.json"
+    if not statuses["trained"] + statuses["resumed"] and previous.exists():
+        earlier = json.loads(previous.read_text())
+        return earlier.get("training_wall_time_s", round(seconds, 1)), earlier.get(
+            "training_workers", earlier.get("workers", workers)
+        )
+    return round(seconds, 1), workers
+
+
 def layout_name(layout_seed: int) -> str:
     return f"layout {layout_seed}"
 
@@ -126,11 +169,7 @@ def score_run(
     paths on the first ``trajectory_layouts`` held-out layouts.
     """
     th.set_num_threads(1)
-    _, config, layout = load_run(run_dir)
-    if config.normalize is not None or config.frame_stack is not None:
-        raise SystemExit(f"{run_dir}: scoring supports entries without `normalize` and `frame_stack`")
-    model = load_model(config, layout.final_model, device="cpu")
-    kwargs = {key: value for key, value in config.env_kwargs.items() if key not in TRAINING_ONLY}
+    _, config, model, kwargs = load_for_scoring(run_dir)
     rows = []
 
     def row(test_set: str, successes: list[bool]) -> dict[str, Any]:
@@ -256,13 +295,7 @@ def main() -> None:
         if result.failures:
             raise SystemExit(f"{len(result.failures)} runs of {algo} failed; re-run to retry them")
         finals.append(pd.read_csv(result.tables[FINAL_CSV]))
-    training_s, training_workers = round(time.perf_counter() - start, 1), args.workers
-    previous = output / "metadata.json"
-    if not statuses["trained"] + statuses["resumed"] and previous.exists():
-        # Every run was finished before: the training time is that of the invocation that trained them.
-        earlier = json.loads(previous.read_text())
-        training_s = earlier.get("training_wall_time_s", training_s)
-        training_workers = earlier.get("training_workers", earlier.get("workers", training_workers))
+    training_s, training_workers = training_time(output, statuses, time.perf_counter() - start, args.workers)
     pd.concat(finals, ignore_index=True).to_csv(output / FINAL_CSV, index=False)
     jobs = [
         (
@@ -323,12 +356,7 @@ def main() -> None:
         "scoring_wall_time_s": round(scoring_s, 1),
         "workers": args.workers,
         "bootstrap_reps": reps,
-        "sb3_adc": sb3_adc.__version__,
-        "stable_baselines3": stable_baselines3.__version__,
-        "torch": th.__version__,
-        "python": platform.python_version(),
-        "cpu_count": os.cpu_count(),
-        "cpu": cpu_model(),
+        **machine_metadata(),
     }
     (output / "metadata.json").write_text(json.dumps(metadata, indent=2) + "\n")
     print("\n".join(lines))
