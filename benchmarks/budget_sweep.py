@@ -16,9 +16,14 @@ Training is ``sb3-adc benchmark``'s engine (resumable, one process per run); the
 (``sweep.csv``: one row per run and checkpoint; ``curves.csv``: mean and IQM across runs with 95% CIs;
 ``summary.md``), the figure to ``docs/_static/benchmarks/budget_sweep_{name}.png``.
 
+``--configs FILE`` replaces the shipped entry and ``--gammas`` with the configurations of a YAML file (a mapping of
+configuration name to ``key: value`` overrides of the entry, checked as the engine checks ``-params``); its results
+go to a folder named after the file (``{env}_{algo}_{file stem}``).
+
 Usage::
 
     python benchmarks/budget_sweep.py --workers 2
+    python benchmarks/budget_sweep.py --configs benchmarks/configs/budget_sweep/wide.yml --workers 2
     python benchmarks/budget_sweep.py --quick      # a smoke run
     python benchmarks/budget_sweep.py --replot     # redraw the figure from the committed sweep.csv
 """
@@ -39,6 +44,7 @@ import pandas as pd
 import torch as th
 from procedural_generalisation import episode_success, load_for_scoring, machine_metadata, report, training_time
 
+from sb3_adc.config.loader import HyperparamsError, read_yaml_file
 from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSpec, run_benchmark
 from sb3_adc.experiment.layout import RunLayout
 from sb3_adc.experiment.plots import plot_learning_curves
@@ -59,6 +65,23 @@ TARGET = 0.9
 
 def config_name(gamma: float | None) -> str:
     return SHIPPED if gamma is None else f"gamma {gamma:g}"
+
+
+def read_configs(path: str) -> dict[str, dict[str, Any]]:
+    """
+    The configurations of a ``--configs`` file: configuration name -> overrides of the shipped entry.
+
+    :raises HyperparamsError: for a file that is not a non-empty mapping of names to mappings
+    """
+    content = read_yaml_file(path)
+    if not isinstance(content, dict) or not content:
+        raise HyperparamsError(path, None, "must be a non-empty mapping: configuration name -> {key: value} overrides")
+    for name, overrides in content.items():
+        if not isinstance(name, str) or not name.strip():
+            raise HyperparamsError(path, None, f"configuration names must be non-empty strings, got {name!r}")
+        if not isinstance(overrides, dict):
+            raise HyperparamsError(path, name, f"must be a mapping of key: value overrides, got {type(overrides).__name__}")
+    return content
 
 
 def score_checkpoint(run_dir: str, config: str, seed: int, timesteps: int, model_path: str, n_layouts: int) -> dict[str, Any]:
@@ -112,6 +135,7 @@ def main() -> None:
     parser.add_argument("--env", default="sb3_adc/LidarObstacleCourse-v1", help="the procedural environment id")
     parser.add_argument("--algo", default="adc", choices=["adc", "ddpg", "td3", "sac"])
     parser.add_argument("--gammas", type=float, nargs="*", default=[0.98], help="discounts tried beside the entry's")
+    parser.add_argument("--configs", help="YAML file of configurations (name -> overrides) instead of shipped and --gammas")
     parser.add_argument("--seeds", type=int, nargs="+", default=TUNING_SEEDS, help="tuning seeds (0-4)")
     parser.add_argument("-n", "--n-timesteps", type=int, default=100_000, help="budget of every run")
     parser.add_argument("--layouts", type=int, default=50, help="validation layouts per checkpoint")
@@ -133,7 +157,12 @@ def main() -> None:
     seeds, n_timesteps, n_layouts, reps = args.seeds, args.n_timesteps, args.layouts, args.reps
     if args.quick:
         seeds, n_timesteps, n_layouts, reps = seeds[:1], 1000, 3, 200
-    name = f"{args.env.split('/')[-1]}_{args.algo}" + ("_quick" if args.quick else "")
+    try:
+        file_configs = read_configs(args.configs) if args.configs else None
+    except (OSError, HyperparamsError) as error:
+        parser.error(f"--configs: {error}")
+    stem = f"_{Path(args.configs).stem}" if args.configs else ""
+    name = f"{args.env.split('/')[-1]}_{args.algo}{stem}" + ("_quick" if args.quick else "")
     output = RESULTS_DIR / name
     figure = DOCS_STATIC / f"budget_sweep_{name}.png"
     if args.replot:
@@ -141,7 +170,7 @@ def main() -> None:
         print(f"wrote {figure}")
         return
     output.mkdir(parents=True, exist_ok=True)
-    configs: dict[str, dict[str, Any]] = {config_name(None): {}} | {
+    configs: dict[str, dict[str, Any]] = file_configs or {config_name(None): {}} | {
         config_name(gamma): {"gamma": gamma} for gamma in args.gammas
     }
     start = time.perf_counter()

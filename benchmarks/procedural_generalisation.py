@@ -35,6 +35,7 @@ import os
 import platform
 import time
 from collections import Counter
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -154,48 +155,45 @@ def held_out_courses(env_id: str, env_kwargs: dict[str, Any], layout_seeds: list
     return courses
 
 
-def score_run(
-    run_dir: str,
-    algo: str,
+def score_policy(
+    policy: Any,
+    wrap: Callable[[gym.Env], gym.Env],
     env_id: str,
-    seed: int,
+    env_kwargs: dict[str, Any],
     courses: list[str],
     course_episodes: int,
     n_layouts: int,
     trajectory_layouts: int,
 ) -> tuple[list[dict[str, Any]], list[pd.DataFrame]]:
     """
-    The success rate of a finished run's final model on the held-out layouts and on each course file, and its
-    paths on the first ``trajectory_layouts`` held-out layouts.
+    The success rate of a policy (anything with SB3's ``predict``) on the first ``n_layouts`` held-out layouts and
+    on each course file, and its paths on the first ``trajectory_layouts`` held-out layouts.
+
+    :param wrap: The wrappers the policy was trained with (a run's ``config.wrap_env``)
+    :param env_kwargs: ``gym.make`` keywords of every test environment
+    :return: One row per test set (``test_set``, ``episodes``, ``successes``, ``success_rate``) and the paths
     """
-    th.set_num_threads(1)
-    _, config, model, kwargs = load_for_scoring(run_dir)
-    rows = []
 
     def row(test_set: str, successes: list[bool]) -> dict[str, Any]:
         return {
-            "algo": algo,
-            "env": env_id,
-            "seed": seed,
             "test_set": test_set,
             "episodes": len(successes),
             "successes": int(sum(successes)),
             "success_rate": float(np.mean(successes)),
         }
 
-    env = config.wrap_env(gym.make(env_id, **{**kwargs, "layout_seeds": TEST_LAYOUT_SEEDS}))
+    rows = []
+    env = wrap(gym.make(env_id, **{**env_kwargs, "layout_seeds": TEST_LAYOUT_SEEDS}))
     first = TEST_LAYOUT_SEEDS[0]
     successes, paths = [], []
     for k in range(n_layouts):
         # Seeded like the course episodes: the noisy variant's observation noise is drawn from the episode's seed.
-        successes.append(episode_success(model, env, seed=first + k, options={"layout_seed": first + k}))
+        successes.append(episode_success(policy, env, seed=first + k, options={"layout_seed": first + k}))
         if k < trajectory_layouts:
             path = env.unwrapped.trajectory  # type: ignore[attr-defined]
             paths.append(
                 pd.DataFrame(
                     {
-                        "algo": algo,
-                        "seed": seed,
                         "course": layout_name(first + k),
                         "step": np.arange(len(path)),
                         "x": path[:, 0].round(3),
@@ -207,10 +205,28 @@ def score_run(
     rows.append(row(HELD_OUT, successes))
     env.close()
     for course in courses:
-        env = config.wrap_env(gym.make(env_id, **{**kwargs, **COURSE_JITTER, "course": course}))
-        rows.append(row(course, [episode_success(model, env, seed=k) for k in range(course_episodes)]))
+        env = wrap(gym.make(env_id, **{**env_kwargs, **COURSE_JITTER, "course": course}))
+        rows.append(row(course, [episode_success(policy, env, seed=k) for k in range(course_episodes)]))
         env.close()
     return rows, paths
+
+
+def score_run(
+    run_dir: str,
+    algo: str,
+    env_id: str,
+    seed: int,
+    courses: list[str],
+    course_episodes: int,
+    n_layouts: int,
+    trajectory_layouts: int,
+) -> tuple[list[dict[str, Any]], list[pd.DataFrame]]:
+    """:func:`score_policy` for a finished run's final model, its rows and paths labelled with the run."""
+    th.set_num_threads(1)
+    _, config, model, kwargs = load_for_scoring(run_dir)
+    rows, paths = score_policy(model, config.wrap_env, env_id, kwargs, courses, course_episodes, n_layouts, trajectory_layouts)
+    run = {"algo": algo, "env": env_id, "seed": seed}
+    return [run | row for row in rows], [path.assign(algo=algo, seed=seed)[["algo", "seed", *path.columns]] for path in paths]
 
 
 def robot_overrides(algo: str, env_id: str, robot: str) -> dict[str, Any]:

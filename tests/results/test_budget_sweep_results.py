@@ -50,3 +50,30 @@ def test_committed_sweep_follows_the_protocol_and_rebuilds(folder, monkeypatch):
     assert metadata["best"] == {"config": best["config"], "timesteps": int(best["timesteps"]), "mean": round(best["mean"], 3)}
     for name in ("budget_sweep", "procedural_generalisation"):
         sys.modules.pop(name, None)
+
+
+def test_configs_file_is_checked_and_committed_sweeps_name_theirs(tmp_path, monkeypatch):
+    from sb3_adc.config.loader import HyperparamsError
+
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    budget_sweep = importlib.import_module("budget_sweep")
+    for text, match in [
+        ("[1, 2]\n", "non-empty mapping"),
+        ("{}\n", "non-empty mapping"),
+        ("wide: 3\n", "mapping of key: value overrides"),
+        ("1: {gamma: 0.98}\n", "non-empty strings"),
+    ]:
+        path = tmp_path / "configs.yml"
+        path.write_text(text)
+        with pytest.raises(HyperparamsError, match=match):
+            budget_sweep.read_configs(str(path))
+    path.write_text("long horizon:\n  gamma: 0.99\n")
+    assert budget_sweep.read_configs(str(path)) == {"long horizon": {"gamma": 0.99}}
+    # A committed sweep from a configurations file ran that file's configurations.
+    for folder in FOLDERS:
+        configs = ROOT / "benchmarks" / "configs" / "budget_sweep" / f"{folder.name.split('_', 2)[-1]}.yml"
+        if configs.exists():
+            metadata = json.loads((folder / "metadata.json").read_text())
+            assert metadata["configs"] == budget_sweep.read_configs(str(configs))
+    sys.modules.pop("budget_sweep", None)
+    sys.modules.pop("procedural_generalisation", None)

@@ -52,3 +52,42 @@ def test_committed_paths_match_the_scored_runs_and_the_layouts(folder):
     drawn = trajectories.groupby(["algo", "seed", "course"])["success"].first().groupby(["algo", "seed"]).sum()
     for row in held_out.itertuples(index=False):
         assert drawn.loc[(row.algo, row.seed)] <= row.successes
+
+
+PLANNER_CSV = RESULTS / "reference_planner.csv"
+
+
+@pytest.mark.skipif(not PLANNER_CSV.exists(), reason="no committed reference-planner scores")
+def test_committed_reference_planner_was_chosen_on_validation_and_rebuilds(monkeypatch):
+    import importlib
+    import sys
+
+    from sb3_adc_envs.lidar_course.env import VALIDATION_LAYOUT_SEEDS
+
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    reference_planner = importlib.import_module("reference_planner")
+    metadata = json.loads((RESULTS / "reference_planner_metadata.json").read_text())
+    selection = pd.read_csv(RESULTS / "reference_planner_selection.csv")
+    # Chosen on the validation layouts: the first setting of the grid with the highest success there.
+    first, last = metadata["validation_layouts"]
+    assert VALIDATION_LAYOUT_SEEDS[0] == first <= last < VALIDATION_LAYOUT_SEEDS[1]
+    assert (selection["episodes"] == last - first + 1).all()
+    params = list(metadata["grid"])
+    assert len(selection) == np.prod([len(values) for values in metadata["grid"].values()])
+    best = selection.iloc[int(selection["success_rate"].to_numpy().argmax())]
+    assert {name: best[name] for name in params} == metadata["chosen"]
+    # Scored on the test sets of the learned policies: every held-out layout, every course file, each variant.
+    scores = pd.read_csv(PLANNER_CSV)
+    courses = sorted(path.stem for path in (ROOT / "envs" / "courses").glob("*.yml"))
+    assert metadata["courses"] == courses
+    n_layouts = TEST_LAYOUT_SEEDS[1] - TEST_LAYOUT_SEEDS[0]
+    assert metadata["held_out_layouts"] == [TEST_LAYOUT_SEEDS[0], TEST_LAYOUT_SEEDS[1] - 1]
+    variants = [tuple(variant) for variant in reference_planner.VARIANTS]
+    assert list(dict.fromkeys(scores[["env", "robot"]].itertuples(index=False, name=None))) == variants
+    for _, frame in scores.groupby(["env", "robot"]):
+        assert list(frame["test_set"]) == ["held-out layouts", *courses]
+        assert list(frame["episodes"]) == [n_layouts] + [metadata["course_episodes"]] * len(courses)
+    assert (scores["success_rate"] == scores["successes"] / scores["episodes"]).all()
+    assert (RESULTS / "reference_planner.md").read_text() == reference_planner.markdown(scores)
+    for name in ("reference_planner", "procedural_generalisation"):
+        sys.modules.pop(name, None)
