@@ -42,12 +42,13 @@ import gymnasium as gym
 import numpy as np
 import pandas as pd
 import torch as th
-from procedural_generalisation import episode_success, load_for_scoring, machine_metadata, report, training_time
+from procedural_generalisation import episode_success, load_for_scoring, report, training_time
 
 from sb3_adc.config.loader import HyperparamsError, read_yaml_file
 from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSpec, run_benchmark
 from sb3_adc.experiment.layout import RunLayout
 from sb3_adc.experiment.plots import plot_learning_curves
+from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc.experiment.statistics import learning_curves
 from sb3_adc_envs.lidar_course.env import VALIDATION_LAYOUT_SEEDS
 

@@ -40,7 +40,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import time
 import warnings
 from pathlib import Path
@@ -48,15 +47,14 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import stable_baselines3
 import torch as th
 from rliable import library as rly
 from rliable import metrics
 
-import sb3_adc
 from sb3_adc.config import packaged_hyperparams_file
 from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CSV, BenchmarkSettings, RunOutcome, run_benchmark
 from sb3_adc.experiment.plots import plot_results
+from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc.experiment.statistics import CONFIDENCE, time_to_threshold
 
 ROOT = Path(__file__).resolve().parent
@@ -531,11 +529,7 @@ def main() -> None:
         "wall_time_s_per_invocation": wall_times,
         "workers": args.workers,
         "bootstrap_reps": args.reps,
-        "sb3_adc": sb3_adc.__version__,
-        "stable_baselines3": stable_baselines3.__version__,
-        "torch": th.__version__,
-        "python": platform.python_version(),
-        "cpu_count": os.cpu_count(),
+        **machine_metadata(),
     }
     metadata_path.write_text(json.dumps(metadata, indent=2) + "\n")
     budget = "each entry's n_timesteps" if args.n_timesteps is None else f"{args.n_timesteps} steps"

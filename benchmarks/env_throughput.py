@@ -34,6 +34,7 @@ import numpy as np
 from gymnasium.envs.registration import load_env_creator
 
 import sb3_adc
+from sb3_adc.experiment.provenance import cpu_model
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
 FIGURE_PATH = Path(__file__).resolve().parent.parent / "docs" / "_static" / "envs" / "env_throughput.png"
@@ -108,17 +109,6 @@ def pin_to_one_core() -> str:
         os.sched_setaffinity(0, {core})
         return f"pinned to core {core}"
     return "not pinned (no sched_setaffinity on this OS)"
-
-
-def cpu_model() -> str:
-    """The CPU's model name, where /proc/cpuinfo tells it."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def run(scale: float, repeats: int) -> list[dict[str, Any]]:

@@ -27,16 +27,13 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import os
-import platform
 import shutil
 import time
 from pathlib import Path
 
-import stable_baselines3
 import torch as th
 
-import sb3_adc
+from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc.experiment.tuning import TuneSettings, tune
 
 ROOT = Path(__file__).resolve().parent
@@ -124,11 +121,7 @@ def main() -> None:
             "pruner": "median (3 startup trials, 5 evaluations of 5 episodes per run)",
             "objective": "mean over the seeds of the final evaluation (10 deterministic episodes)",
             "workers": args.workers,
-            "sb3_adc": sb3_adc.__version__,
-            "stable_baselines3": stable_baselines3.__version__,
-            "torch": th.__version__,
-            "python": platform.python_version(),
-            "cpu_count": os.cpu_count(),
+            **machine_metadata(),
         }
     )
     metadata_path.write_text(json.dumps(metadata, indent=2) + "\n")

@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import platform
 import time
 from pathlib import Path
 
@@ -30,6 +29,7 @@ import gymnasium as gym
 import pandas as pd
 
 import sb3_adc  # noqa: F401 (registers the environments)
+from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc_envs.lidar_course import Course, load_course, shipped_courses
 from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS
 from sb3_adc_envs.lidar_course.passability import kinematic_reach
@@ -89,7 +89,7 @@ def main() -> None:
         "n_actions": 5,
         "max_states": args.max_states,
         "wall_time_s": wall_s,
-        "python": platform.python_version(),
+        **machine_metadata(),
     }
     (OUTPUT / f"feasibility{suffix}_metadata.json").write_text(json.dumps(metadata, indent=2) + "\n")
     print("\n".join(lines))

@@ -27,19 +27,17 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import shutil
 import time
 from pathlib import Path
 
 import pandas as pd
-import stable_baselines3
 import torch as th
 
-import sb3_adc
 from sb3_adc.config import packaged_hyperparams_file
 from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CSV, BenchmarkSettings, RunOutcome, run_benchmark
 from sb3_adc.experiment.plots import plot_results
+from sb3_adc.experiment.provenance import machine_metadata
 
 ROOT = Path(__file__).resolve().parent
 RUNS_DIR = ROOT / "runs" / "paper_pendulum"
@@ -113,12 +111,7 @@ def run_grid(name: str, seeds: int, workers: int, n_timesteps: int | None, reps:
         "runs": len(result.outcomes),
         "workers": workers,
         "bootstrap_reps": reps,
-        "sb3_adc": sb3_adc.__version__,
-        "stable_baselines3": stable_baselines3.__version__,
-        "torch": th.__version__,
-        "python": platform.python_version(),
-        "machine": platform.machine(),
-        "cpu_count": os.cpu_count(),
+        **machine_metadata(),
     }
     (output / "metadata.json").write_text(json.dumps(metadata, indent=2) + "\n")
     if not quick:

@@ -32,7 +32,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -43,15 +42,14 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pandas as pd
-import stable_baselines3
 import torch as th
 
-import sb3_adc
 from sb3_adc.config.experiment_config import ExperimentConfig
 from sb3_adc.config.loader import load_hyperparams
 from sb3_adc.experiment.benchmark import FINAL_CSV, BenchmarkSettings, RunOutcome, RunSpec, run_benchmark
 from sb3_adc.experiment.enjoy import load_model, load_run
 from sb3_adc.experiment.plots import plot_final_performance, plot_trajectories
+from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc.experiment.settings import TrainSettings
 from sb3_adc.experiment.statistics import final_performance, probability_of_improvement
 from sb3_adc_envs.lidar_course import Course
@@ -88,27 +86,6 @@ def episode_success(model: Any, env: gym.Env, **reset: Any) -> bool:
         observation, _, terminated, truncated, info = env.step(action)
         if terminated or truncated:
             return bool(info["is_success"])
-
-
-def cpu_model() -> str:
-    """The processor's model name (float rounding, hence a run's exact digits, can depend on it)."""
-    try:
-        lines = Path("/proc/cpuinfo").read_text().splitlines()
-    except OSError:
-        return platform.processor()
-    return next((line.split(":", 1)[1].strip() for line in lines if line.startswith("model name")), platform.processor())
-
-
-def machine_metadata() -> dict[str, Any]:
-    """The versions and the machine behind a results folder, the last keys of its ``metadata.json``."""
-    return {
-        "sb3_adc": sb3_adc.__version__,
-        "stable_baselines3": stable_baselines3.__version__,
-        "torch": th.__version__,
-        "python": platform.python_version(),
-        "cpu_count": os.cpu_count(),
-        "cpu": cpu_model(),
-    }
 
 
 def load_for_scoring(

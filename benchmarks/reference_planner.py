@@ -33,8 +33,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pandas as pd
-from procedural_generalisation import COURSES_DIR, HELD_OUT, RESULTS_DIR, episode_success, machine_metadata, score_policy
+from procedural_generalisation import COURSES_DIR, HELD_OUT, RESULTS_DIR, episode_success, score_policy
 
+from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS, VALIDATION_LAYOUT_SEEDS
 from sb3_adc_envs.lidar_course.planner import LidarLocalPlanner
 
