@@ -7,8 +7,8 @@ simulators are imported when an environment that needs them is made.
 """
 
 from sb3_adc_envs.registration import register_envs
-from sb3_adc_envs.wrappers import DiscretizedActions, UniformObservationNoise
+from sb3_adc_envs.wrappers import ClearanceShaping, DiscretizedActions, UniformObservationNoise
 
-__all__ = ["DiscretizedActions", "UniformObservationNoise", "register_envs"]
+__all__ = ["ClearanceShaping", "DiscretizedActions", "UniformObservationNoise", "register_envs"]
 
 register_envs()

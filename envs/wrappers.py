@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -124,3 +124,52 @@ class DiscretizedActions(gym.ActionWrapper[Any, np.int64, np.ndarray]):
         digits = np.unravel_index(index, self.grid_shape)
         values = self.action_values[np.arange(len(digits)), np.asarray(digits)]
         return values.reshape(self._box.shape).astype(self._box.dtype)
+
+
+class ClearanceShaping(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
+    """
+    Potential-based reward shaping (Ng, Harada and Russell, 1999) on the lidar course's clearance: the reward of
+    a step from ``s`` to ``s'`` gains ``gamma * phi(s') - phi(s)``, with the potential
+    ``phi(s) = -scale * max(0, 1 - clearance(s) / safe_distance)`` (0 with at least ``safe_distance`` of free space
+    around the robot, ``-scale`` touching) and ``phi = 0`` after the last step of a terminated episode.
+
+    With the algorithm's own discount as ``gamma`` the shaping leaves the optimal policies of the task unchanged
+    (the shaping terms of an episode telescope to ``-phi(s_0)`` plus a discounted ``phi`` of the last state), while
+    every step near a wall or an obstacle now says so, long before a collision does. Success (``is_success``) and
+    the rest of ``info`` are the environment's; ``info["shaping"]`` holds the step's term.
+
+    :param env: A lidar course environment (its ``info`` has ``clearance``), wrapped or not
+    :param gamma: The discount of the algorithm trained on it (the entry's ``gamma``)
+    :param safe_distance: Clearance from which the potential is 0 [m]
+    :param scale: Depth of the potential at zero clearance (the collision reward of the course is -1)
+    """
+
+    def __init__(self, env: gym.Env[np.ndarray, np.ndarray], gamma: float, safe_distance: float = 0.5, scale: float = 0.5):
+        super().__init__(env)
+        if isinstance(gamma, bool) or not isinstance(gamma, (int, float)) or not 0.0 < gamma <= 1.0:
+            raise ValueError(f"ClearanceShaping: `gamma` must be in (0, 1] (the algorithm's discount), got {gamma!r}.")
+        for name, value in (("safe_distance", safe_distance), ("scale", scale)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value <= 0.0:
+                raise ValueError(f"ClearanceShaping: `{name}` must be a finite number > 0, got {value!r}.")
+        self.gamma = float(gamma)
+        self.safe_distance = float(safe_distance)
+        self.scale = float(scale)
+        self._potential = 0.0
+
+    def potential(self, info: dict[str, Any]) -> float:
+        """``phi`` of the state whose ``info`` is given."""
+        if "clearance" not in info:
+            raise KeyError("ClearanceShaping needs `clearance` in the environment's info (the lidar course's).")
+        return -self.scale * max(0.0, 1.0 - float(info["clearance"]) / self.safe_distance)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        observation, info = self.env.reset(seed=seed, options=options)
+        self._potential = self.potential(info)
+        return observation, info
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
+        observation, reward, terminated, truncated, info = self.env.step(action)
+        potential = 0.0 if terminated else self.potential(info)
+        shaping = self.gamma * potential - self._potential
+        self._potential = potential
+        return observation, float(reward) + shaping, terminated, truncated, {**info, "shaping": shaping}

@@ -56,11 +56,14 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
       robot touches a wall or an obstacle, which terminates the episode.
     - **Episode**: starts at the course's start pose (optionally jittered); registered with a
       500-step time limit (``gym.make`` adds the ``TimeLimit`` wrapper; the class alone never truncates).
-    - **Info**: ``{"collision": bool, "is_success": bool, "distance": float, "course": str}``: ``is_success`` is
-      ``not collision``, so at the episode's last step it tells whether the robot drove until the time limit
-      without a collision (what SB3's ``EvalCallback`` and the RL Zoo log as the success rate); ``distance`` is
-      the distance driven along the course since the reset [m]: along the corridor's centre line (backwards
-      counts negative) when the course has one, else the length of the path.
+    - **Info**: ``{"collision": bool, "is_success": bool, "distance": float, "clearance": float, "course": str}``:
+      ``is_success`` is ``not collision``, so at the episode's last step it tells whether the robot drove until
+      the time limit without a collision (what SB3's ``EvalCallback`` and the RL Zoo log as the success rate);
+      ``distance`` is the distance driven along the course since the reset [m]: along the corridor's centre line
+      (backwards counts negative) when the course has one, else the length of the path; ``clearance`` is the
+      shortest lidar reading less the robot's radius [m]: the free space the rays see around the robot, without
+      observation noise (a thin obstacle between two rays is not seen), which
+      :class:`~sb3_adc_envs.wrappers.ClearanceShaping` shapes the reward with.
 
     With ``robot="wheeled"`` the robot has dynamics: a differential-drive
     :class:`~sb3_adc_envs.lidar_course.wheeled.WheeledRobot` (two motor-driven wheels and two casters under a
@@ -300,7 +303,13 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         self._renderer = None
 
     def _info(self, collided: bool) -> dict[str, Any]:
-        return {"collision": collided, "is_success": not collided, "distance": self._distance, "course": self.course.name}
+        return {
+            "collision": collided,
+            "is_success": not collided,
+            "distance": self._distance,
+            "clearance": float(self._lidar.min()) * self.max_range - self.robot_radius,
+            "course": self.course.name,
+        }
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
         """
@@ -312,7 +321,7 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         :param action: ``(1,)`` array in ``[-1, 1]``
         :return: observation, reward (``step_reward``, or ``collision_reward`` on a collision), terminated (a
             collision), truncated (always ``False``: ``gym.make`` adds the 500-step limit) and
-            ``{"collision": bool, "is_success": bool, "distance": float, "course": str}``
+            ``{"collision": bool, "is_success": bool, "distance": float, "clearance": float, "course": str}``
         :raises ValueError: if the action is NaN
         """
         steer = float(action[0])

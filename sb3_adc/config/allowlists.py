@@ -132,6 +132,7 @@ REPLAY_BUFFERS = AllowList(
 ENV_WRAPPERS = AllowList(
     "environment wrapper",
     {
+        "sb3_adc_envs.wrappers.ClearanceShaping": "sb3_adc_envs.wrappers:ClearanceShaping",
         "sb3_adc_envs.wrappers.DiscretizedActions": "sb3_adc_envs.wrappers:DiscretizedActions",
         "sb3_adc_envs.wrappers.UniformObservationNoise": "sb3_adc_envs.wrappers:UniformObservationNoise",
         "sb3_contrib.common.wrappers.TimeFeatureWrapper": "sb3_contrib.common.wrappers:TimeFeatureWrapper",

@@ -16,7 +16,9 @@ STRAIGHT = np.zeros(1, dtype=np.float32)
 def test_a_run_until_the_time_limit_is_a_success_and_a_collision_is_not(box_course):
     env = gym.make("sb3_adc/LidarObstacleCourse-v0", max_episode_steps=20)
     _, info = env.reset()
+    clearance = info.pop("clearance")
     assert info == {"collision": False, "is_success": True, "distance": 0.0, "course": "training"}
+    assert 0.0 < clearance < 3.0
     for _ in range(20):
         _, _, terminated, truncated, info = env.step(STRAIGHT)
     assert truncated
