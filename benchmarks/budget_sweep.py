@@ -42,7 +42,7 @@ import gymnasium as gym
 import numpy as np
 import pandas as pd
 import torch as th
-from procedural_generalisation import episode_success, load_for_scoring, report, training_time
+from procedural_generalisation import layout_success, load_for_scoring, report, training_time
 
 from sb3_adc.config.loader import HyperparamsError, read_yaml_file
 from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSpec, run_benchmark
@@ -91,7 +91,7 @@ def score_checkpoint(run_dir: str, config: str, seed: int, timesteps: int, model
     settings, entry, model, kwargs = load_for_scoring(run_dir, model_path)
     env = entry.wrap_env(gym.make(settings.env_id, **{**kwargs, "layout_seeds": VALIDATION_LAYOUT_SEEDS}))
     first = VALIDATION_LAYOUT_SEEDS[0]
-    successes = [episode_success(model, env, seed=first + k, options={"layout_seed": first + k}) for k in range(n_layouts)]
+    successes = [layout_success(model, env, first + k) for k in range(n_layouts)]
     env.close()
     return {
         "config": config,

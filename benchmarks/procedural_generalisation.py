@@ -88,6 +88,14 @@ def episode_success(model: Any, env: gym.Env, **reset: Any) -> bool:
             return bool(info["is_success"])
 
 
+def layout_success(model: Any, env: gym.Env, layout_seed: int) -> bool:
+    """
+    :func:`episode_success` on one procedural layout, the episode seeded by its layout seed (the noisy variants'
+    observation noise too), so that scoring the same model again gives the same result.
+    """
+    return episode_success(model, env, seed=layout_seed, options={"layout_seed": layout_seed})
+
+
 def load_for_scoring(
     run_dir: str, model_path: str | None = None
 ) -> tuple[TrainSettings, ExperimentConfig, Any, dict[str, Any]]:
@@ -164,8 +172,7 @@ def score_policy(
     first = TEST_LAYOUT_SEEDS[0]
     successes, paths = [], []
     for k in range(n_layouts):
-        # Seeded like the course episodes: the noisy variant's observation noise is drawn from the episode's seed.
-        successes.append(episode_success(policy, env, seed=first + k, options={"layout_seed": first + k}))
+        successes.append(layout_success(policy, env, first + k))
         if k < trajectory_layouts:
             path = env.unwrapped.trajectory  # type: ignore[attr-defined]
             paths.append(

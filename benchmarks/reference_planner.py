@@ -33,7 +33,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pandas as pd
-from procedural_generalisation import COURSES_DIR, HELD_OUT, RESULTS_DIR, episode_success, score_policy
+from procedural_generalisation import COURSES_DIR, HELD_OUT, RESULTS_DIR, layout_success, score_policy
 
 from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS, VALIDATION_LAYOUT_SEEDS
@@ -57,7 +57,7 @@ def validate(params: dict[str, Any], n_layouts: int) -> dict[str, Any]:
     env = gym.make(env_id, robot=robot, layout_seeds=VALIDATION_LAYOUT_SEEDS)
     planner = LidarLocalPlanner.for_env(env, **params)
     first = VALIDATION_LAYOUT_SEEDS[0]
-    successes = [episode_success(planner, env, seed=first + k, options={"layout_seed": first + k}) for k in range(n_layouts)]
+    successes = [layout_success(planner, env, first + k) for k in range(n_layouts)]
     env.close()
     return {**params, "episodes": n_layouts, "successes": int(sum(successes)), "success_rate": float(np.mean(successes))}
 
@@ -67,7 +67,9 @@ def score_variant(
 ) -> list[dict[str, Any]]:
     """The chosen planner's success rate on every test set of one observation variant and robot."""
     kwargs: dict[str, Any] = {"robot": robot}
-    planner = LidarLocalPlanner.for_env(gym.make(env_id, **kwargs), **params)
+    sensor = gym.make(env_id, **kwargs)
+    planner = LidarLocalPlanner.for_env(sensor, **params)
+    sensor.close()
     rows, _ = score_policy(planner, lambda env: env, env_id, kwargs, courses, course_episodes, n_layouts, 0)
     return [{"env": env_id, "robot": robot, **row} for row in rows]
 
