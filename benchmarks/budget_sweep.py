@@ -34,7 +34,7 @@ import argparse
 import json
 import time
 from collections import Counter
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -45,7 +45,7 @@ import torch as th
 from procedural_generalisation import layout_success, load_for_scoring, report, training_time
 
 from sb3_adc.config.loader import HyperparamsError, read_yaml_file
-from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSpec, run_benchmark
+from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSpec, run_benchmarks
 from sb3_adc.experiment.layout import RunLayout
 from sb3_adc.experiment.plots import plot_learning_curves
 from sb3_adc.experiment.provenance import machine_metadata
@@ -191,11 +191,8 @@ def main() -> None:
         )
         for config, overrides in configs.items()
     }
-    # One grid per configuration (run_benchmark takes one set of overrides), run side by side so that the workers
-    # are shared out across configurations instead of idling at the end of each grid.
-    with ThreadPoolExecutor(max_workers=min(len(grids), args.workers)) as threads:
-        share = max(args.workers // len(grids), 1)
-        results = list(threads.map(lambda settings: run_benchmark(settings, workers=share, report=report), grids.values()))
+    # One grid per configuration (a grid has one set of overrides), all in one pool of workers.
+    results = run_benchmarks(list(grids.values()), workers=args.workers, report=report)
     statuses = Counter(outcome.status for result in results for outcome in result.outcomes)
     jobs = []
     for (config, settings), result in zip(grids.items(), results, strict=True):

@@ -21,7 +21,7 @@ import os
 import re
 import traceback
 import warnings
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -284,36 +284,38 @@ def _init_worker() -> None:
     th.set_num_threads(1)
 
 
-def run_local(specs: list[RunSpec], settings: BenchmarkSettings, workers: int) -> Iterator[RunOutcome]:
-    """
-    Run the grid in a pool of ``workers`` processes; outcomes come as runs finish.
+#: A run and the settings of its grid: the unit the local and Ray backends schedule.
+Job = tuple[RunSpec, BenchmarkSettings]
 
-    :param specs: The runs
-    :param settings: The grid's settings
+
+def run_local(jobs: Sequence[Job], workers: int) -> Iterator[tuple[int, RunOutcome]]:
+    """
+    Run the jobs in a pool of ``workers`` processes; ``(job index, outcome)`` pairs come as runs finish.
+
+    :param jobs: The runs, each with its grid's settings (one grid or several sharing the pool)
     :param workers: Number of processes (1: in this process, one after the other)
     """
     if workers <= 1:
-        for spec in specs:
-            yield run_one(spec, settings)
+        for index, (spec, settings) in enumerate(jobs):
+            yield index, run_one(spec, settings)
         return
     context = multiprocessing.get_context("spawn")
     with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context, initializer=_init_worker) as pool:
-        futures = [pool.submit(run_one, spec, settings) for spec in specs]
+        futures = {pool.submit(run_one, spec, settings): index for index, (spec, settings) in enumerate(jobs)}
         for future in concurrent.futures.as_completed(futures):
-            yield future.result()
+            yield futures[future], future.result()
 
 
-def run_ray(specs: list[RunSpec], settings: BenchmarkSettings, address: str | None = None) -> Iterator[RunOutcome]:
+def run_ray(jobs: Sequence[Job], address: str | None = None) -> Iterator[tuple[int, RunOutcome]]:
     """
-    Run the grid as Ray tasks, one run per task (one CPU each); outcomes come as runs finish.
+    Run the jobs as Ray tasks, one run per task (one CPU each); ``(job index, outcome)`` pairs come as runs finish.
 
     Uses the Ray instance this process is connected to, else connects to ``address`` (``ray.init(address)``;
     ``None`` starts a local instance). The tasks return their result rows, so the tables are complete even
     when the workers do not share the driver's file system; to resume interrupted runs, put ``log_folder`` on
     storage all nodes share.
 
-    :param specs: The runs
-    :param settings: The grid's settings
+    :param jobs: The runs, each with its grid's settings
     :param address: Address of the Ray cluster (``ray.init(address=...)``)
     """
     import ray
@@ -321,10 +323,11 @@ def run_ray(specs: list[RunSpec], settings: BenchmarkSettings, address: str | No
     if not ray.is_initialized():
         ray.init(address=address)
     task = ray.remote(num_cpus=1)(_ray_run_one)
-    pending = [task.remote(spec, settings) for spec in specs]
+    indices = {task.remote(spec, settings): index for index, (spec, settings) in enumerate(jobs)}
+    pending = list(indices)
     while pending:
         done, pending = ray.wait(pending, num_returns=1)
-        yield ray.get(done[0])
+        yield indices[done[0]], ray.get(done[0])
 
 
 def _ray_run_one(spec: RunSpec, settings: BenchmarkSettings) -> RunOutcome:
@@ -367,27 +370,65 @@ def run_benchmark(
     :raises HyperparamsError: for invalid hyperparameters (before any run starts)
     :raises RunSettingsMismatch: if runs on disk were made with other settings (before any run starts)
     """
-    specs = settings.grid()
-    if not specs:
-        raise ValueError("the grid is empty: give at least one algorithm, environment and seed.")
-    check_runs_on_disk(settings)
-    if backend == "local":
-        outcomes_iterator: Iterable[RunOutcome] = run_local(specs, settings, workers or os.cpu_count() or 1)
-    elif backend == "ray":
-        outcomes_iterator = run_ray(specs, settings, address)
-    else:
+    return run_benchmarks([settings], backend, workers, address, report)[0]
+
+
+def run_benchmarks(
+    grids: Sequence[BenchmarkSettings],
+    backend: str = "local",
+    workers: int | None = None,
+    address: str | None = None,
+    report: Callable[[RunOutcome, int, int], None] | None = None,
+) -> list[BenchmarkResult]:
+    """
+    Run several grids in one pool of workers and write each grid's tables in its own log folder: a sweep over
+    configurations (one grid per set of overrides) keeps every worker busy until the last run, where running the
+    grids one after the other, or side by side with a share of the workers each, leaves workers idle.
+
+    :param grids: The grids (each its own ``log_folder``)
+    :param backend: ``local`` (a process pool) or ``ray``
+    :param workers: Processes of the local backend (``None``: the number of CPUs)
+    :param address: Ray cluster address (Ray backend)
+    :param report: Called with (outcome, runs done, runs in total) as each run finishes
+    :return: One result per grid, in order
+    :raises HyperparamsError: for invalid hyperparameters (before any run starts)
+    :raises RunSettingsMismatch: if runs on disk were made with other settings (before any run starts)
+    """
+    folders = [os.path.normpath(settings.log_folder) for settings in grids]
+    if len(set(folders)) < len(folders):
+        raise ValueError(f"every grid needs its own `log_folder`, got {[settings.log_folder for settings in grids]}.")
+    if backend not in ("local", "ray"):
         raise ValueError(f"`backend` must be 'local' or 'ray', got {backend!r}.")
-    outcomes: list[RunOutcome] = []
+    jobs: list[Job] = []
+    owner: list[int] = []
+    for number, settings in enumerate(grids):
+        specs = settings.grid()
+        if not specs:
+            raise ValueError("the grid is empty: give at least one algorithm, environment and seed.")
+        check_runs_on_disk(settings)
+        jobs += [(spec, settings) for spec in specs]
+        owner += [number] * len(specs)
+    if backend == "local":
+        pairs: Iterable[tuple[int, RunOutcome]] = run_local(jobs, workers or os.cpu_count() or 1)
+    else:
+        pairs = run_ray(jobs, address)
+    outcomes: list[list[RunOutcome]] = [[] for _ in grids]
+    done = 0
     try:
-        for outcome in outcomes_iterator:
-            outcomes.append(outcome)
+        for index, outcome in pairs:
+            outcomes[owner[index]].append(outcome)
+            done += 1
             if report is not None:
-                report(outcome, len(outcomes), len(specs))
+                report(outcome, done, len(jobs))
     except KeyboardInterrupt:
         # Ctrl-C: the runs in progress saved a checkpoint; the tables keep the runs that finished.
-        write_tables(outcomes, settings.log_folder)
+        for settings, finished in zip(grids, outcomes, strict=True):
+            write_tables(finished, settings.log_folder)
         raise
-    return BenchmarkResult(outcomes, write_tables(outcomes, settings.log_folder))
+    return [
+        BenchmarkResult(finished, write_tables(finished, settings.log_folder))
+        for settings, finished in zip(grids, outcomes, strict=True)
+    ]
 
 
 def write_tables(outcomes: list[RunOutcome], folder: str) -> dict[str, str]:

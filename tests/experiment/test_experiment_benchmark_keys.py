@@ -1,6 +1,8 @@
 """Benchmark runs on disk are reused only with the settings they were made with, and their rows are never dropped."""
 
 import os
+import re
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -12,6 +14,7 @@ from sb3_adc.experiment.benchmark import (
     RunSpec,
     check_runs_on_disk,
     run_benchmark,
+    run_benchmarks,
     runs_on_disk,
 )
 from sb3_adc.experiment.layout import RunLayout
@@ -125,3 +128,43 @@ def test_keep_checkpoints_keeps_every_checkpoint_and_does_not_change_what_a_run_
     steps = [point.timesteps for point in RunLayout(run_dir, "Pendulum-v1").checkpoints()]
     assert steps == [25, 50, 75, 100]
     assert len(RunLayout(RunSpec("ddpg", "Pendulum-v1", 0).run_dir(str(folder)), "Pendulum-v1").checkpoints()) == 2
+
+
+def test_grids_sharing_one_pool_keep_their_own_settings_and_tables(bench, tmp_path):
+    folder, _ = bench
+    conf = str(folder.parent / "conf")
+    grids = [
+        BenchmarkSettings(
+            algos=["ddpg"],
+            env_ids=["Pendulum-v1"],
+            seeds=seeds,
+            log_folder=str(tmp_path / name),
+            overrides=overrides,
+            conf_folder=conf,
+            eval_freq=50,
+            eval_episodes=1,
+            final_eval_episodes=1,
+        )
+        for name, seeds, overrides in [("base", [0, 1], {}), ("short", [0], {"gamma": 0.5})]
+    ]
+    reports = []
+    results = run_benchmarks(grids, workers=2, report=lambda outcome, done, total: reports.append((done, total)))
+    assert reports == [(1, 3), (2, 3), (3, 3)]
+    assert [sorted(outcome.spec.seed for outcome in result.outcomes) for result in results] == [[0, 1], [0]]
+    assert all(outcome.status == "trained" for result in results for outcome in result.outcomes)
+    # Each run has its grid's overrides, and each grid's tables hold its own runs only.
+    for grid, gamma in zip(grids, (0.9, 0.5), strict=True):
+        saved = RunLayout(RunSpec("ddpg", "Pendulum-v1", 0).run_dir(grid.log_folder), "Pendulum-v1").config
+        assert f"gamma: {gamma}" in Path(saved).read_text()
+        assert sorted(set(pd.read_csv(os.path.join(grid.log_folder, "final.csv"))["seed"])) == grid.seeds
+    # A grid of this pool on the first grid's folder would mix their runs: refused before anything runs.
+    grids[1].log_folder = grids[0].log_folder + os.sep
+    with pytest.raises(ValueError, match="its own `log_folder`"):
+        run_benchmarks(grids, workers=1)
+    # Every grid's runs on disk are checked before any grid runs (the first one's new seed 2 is not trained).
+    grids[0].seeds = [0, 1, 2]
+    grids[1].log_folder, grids[1].overrides = str(tmp_path / "short"), {"gamma": 0.7}
+    before = snapshot(tmp_path)
+    with pytest.raises(RunSettingsMismatch, match=re.escape("gamma: 0.5 -> 0.7")):
+        run_benchmarks([grids[0], grids[1]], workers=1)
+    assert snapshot(tmp_path) == before
