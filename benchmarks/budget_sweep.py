@@ -42,10 +42,10 @@ import gymnasium as gym
 import numpy as np
 import pandas as pd
 import torch as th
-from procedural_generalisation import layout_success, load_for_scoring, report, training_time
+from procedural_generalisation import layout_success, load_for_scoring, training_time
 
 from sb3_adc.config.loader import HyperparamsError, read_yaml_file
-from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSpec, run_benchmarks
+from sb3_adc.experiment.benchmark import BenchmarkSettings, RunOutcome, RunSpec, run_benchmarks
 from sb3_adc.experiment.layout import RunLayout
 from sb3_adc.experiment.plots import plot_learning_curves
 from sb3_adc.experiment.provenance import machine_metadata
@@ -66,6 +66,14 @@ TARGET = 0.9
 
 def config_name(gamma: float | None) -> str:
     return SHIPPED if gamma is None else f"gamma {gamma:g}"
+
+
+def report(outcome: RunOutcome, done: int, total: int) -> None:
+    """Progress: each finished run with its configuration (the grids of all configurations share one pool)."""
+    final = "" if outcome.final is None else f" final return {outcome.final['mean_return']:.2f}"
+    print(f"[{done}/{total}] {Path(outcome.log_folder).name}: {outcome.spec}: {outcome.status}{final}", flush=True)
+    if outcome.status == "failed":
+        print(outcome.error, flush=True)
 
 
 def read_configs(path: str) -> dict[str, dict[str, Any]]:

@@ -169,6 +169,7 @@ class RunOutcome:
     :param episodes: Its training-episode rows
     :param final: Its final-evaluation row (``None`` if it failed)
     :param error: The traceback of a failed run
+    :param log_folder: The log folder of the run's grid (which grid it belongs to when several share a pool)
     """
 
     spec: RunSpec
@@ -177,6 +178,7 @@ class RunOutcome:
     episodes: list[Row] = field(default_factory=list)
     final: Row | None = None
     error: str = ""
+    log_folder: str = ""
 
 
 def check_runs_on_disk(settings: BenchmarkSettings) -> None:
@@ -272,9 +274,10 @@ def run_one(spec: RunSpec, settings: BenchmarkSettings) -> RunOutcome:
             evaluations=evaluation_rows(layout, spec.algo, spec.seed),
             episodes=episode_rows(layout, spec.algo, spec.seed),
             final=final_row(layout, spec.algo, spec.seed),
+            log_folder=settings.log_folder,
         )
     except Exception:  # a failed run must not stop the grid
-        return RunOutcome(spec, "failed", error=traceback.format_exc())
+        return RunOutcome(spec, "failed", error=traceback.format_exc(), log_folder=settings.log_folder)
 
 
 def _init_worker() -> None:
@@ -456,6 +459,7 @@ def write_tables(outcomes: list[RunOutcome], folder: str) -> dict[str, str]:
                     evaluations=evaluation_rows(layout, spec.algo, spec.seed),
                     episodes=episode_rows(layout, spec.algo, spec.seed),
                     final=final_row(layout, spec.algo, spec.seed),
+                    log_folder=folder,
                 )
             )
         except (DamagedFileError, OSError, ValueError) as error:

@@ -152,6 +152,7 @@ def test_grids_sharing_one_pool_keep_their_own_settings_and_tables(bench, tmp_pa
     assert reports == [(1, 3), (2, 3), (3, 3)]
     assert [sorted(outcome.spec.seed for outcome in result.outcomes) for result in results] == [[0, 1], [0]]
     assert all(outcome.status == "trained" for result in results for outcome in result.outcomes)
+    assert [{outcome.log_folder for outcome in result.outcomes} for result in results] == [{g.log_folder} for g in grids]
     # Each run has its grid's overrides, and each grid's tables hold its own runs only.
     for grid, gamma in zip(grids, (0.9, 0.5), strict=True):
         saved = RunLayout(RunSpec("ddpg", "Pendulum-v1", 0).run_dir(grid.log_folder), "Pendulum-v1").config
