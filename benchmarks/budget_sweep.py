@@ -35,6 +35,7 @@ import json
 import time
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -42,10 +43,10 @@ import gymnasium as gym
 import numpy as np
 import pandas as pd
 import torch as th
-from procedural_generalisation import layout_success, load_for_scoring, training_time
+from procedural_generalisation import layout_success, load_for_scoring, report, training_time
 
 from sb3_adc.config.loader import HyperparamsError, read_yaml_file
-from sb3_adc.experiment.benchmark import BenchmarkSettings, RunOutcome, RunSpec, run_benchmarks
+from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSpec, run_benchmarks
 from sb3_adc.experiment.layout import RunLayout
 from sb3_adc.experiment.plots import plot_learning_curves
 from sb3_adc.experiment.provenance import machine_metadata
@@ -66,14 +67,6 @@ TARGET = 0.9
 
 def config_name(gamma: float | None) -> str:
     return SHIPPED if gamma is None else f"gamma {gamma:g}"
-
-
-def report(outcome: RunOutcome, done: int, total: int) -> None:
-    """Progress: each finished run with its configuration (the grids of all configurations share one pool)."""
-    final = "" if outcome.final is None else f" final return {outcome.final['mean_return']:.2f}"
-    print(f"[{done}/{total}] {Path(outcome.log_folder).name}: {outcome.spec}: {outcome.status}{final}", flush=True)
-    if outcome.status == "failed":
-        print(outcome.error, flush=True)
 
 
 def read_configs(path: str) -> dict[str, dict[str, Any]]:
@@ -200,7 +193,7 @@ def main() -> None:
         for config, overrides in configs.items()
     }
     # One grid per configuration (a grid has one set of overrides), all in one pool of workers.
-    results = run_benchmarks(list(grids.values()), workers=args.workers, report=report)
+    results = run_benchmarks(list(grids.values()), workers=args.workers, report=partial(report, by_folder=True))
     statuses = Counter(outcome.status for result in results for outcome in result.outcomes)
     jobs = []
     for (config, settings), result in zip(grids.items(), results, strict=True):

@@ -71,9 +71,11 @@ TRAINING_ONLY = ("start_position_jitter", "start_heading_jitter_deg")
 TRAJECTORIES_CSV = "trajectories.csv.gz"
 
 
-def report(outcome: RunOutcome, done: int, total: int) -> None:
+def report(outcome: RunOutcome, done: int, total: int, by_folder: bool = False) -> None:
+    """Progress: each finished run (``by_folder``: with its grid's folder, where several grids share one pool)."""
     final = "" if outcome.final is None else f" final return {outcome.final['mean_return']:.2f}"
-    print(f"[{done}/{total}] {outcome.spec}: {outcome.status}{final}", flush=True)
+    grid = f"{Path(outcome.log_folder).name}: " if by_folder else ""
+    print(f"[{done}/{total}] {grid}{outcome.spec}: {outcome.status}{final}", flush=True)
     if outcome.status == "failed":
         print(outcome.error, flush=True)
 

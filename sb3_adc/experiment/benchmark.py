@@ -291,27 +291,27 @@ def _init_worker() -> None:
 Job = tuple[RunSpec, BenchmarkSettings]
 
 
-def run_local(jobs: Sequence[Job], workers: int) -> Iterator[tuple[int, RunOutcome]]:
+def run_local(jobs: Sequence[Job], workers: int) -> Iterator[RunOutcome]:
     """
-    Run the jobs in a pool of ``workers`` processes; ``(job index, outcome)`` pairs come as runs finish.
+    Run the jobs in a pool of ``workers`` processes; outcomes come as runs finish.
 
     :param jobs: The runs, each with its grid's settings (one grid or several sharing the pool)
     :param workers: Number of processes (1: in this process, one after the other)
     """
     if workers <= 1:
-        for index, (spec, settings) in enumerate(jobs):
-            yield index, run_one(spec, settings)
+        for spec, settings in jobs:
+            yield run_one(spec, settings)
         return
     context = multiprocessing.get_context("spawn")
     with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context, initializer=_init_worker) as pool:
-        futures = {pool.submit(run_one, spec, settings): index for index, (spec, settings) in enumerate(jobs)}
+        futures = [pool.submit(run_one, spec, settings) for spec, settings in jobs]
         for future in concurrent.futures.as_completed(futures):
-            yield futures[future], future.result()
+            yield future.result()
 
 
-def run_ray(jobs: Sequence[Job], address: str | None = None) -> Iterator[tuple[int, RunOutcome]]:
+def run_ray(jobs: Sequence[Job], address: str | None = None) -> Iterator[RunOutcome]:
     """
-    Run the jobs as Ray tasks, one run per task (one CPU each); ``(job index, outcome)`` pairs come as runs finish.
+    Run the jobs as Ray tasks, one run per task (one CPU each); outcomes come as runs finish.
 
     Uses the Ray instance this process is connected to, else connects to ``address`` (``ray.init(address)``;
     ``None`` starts a local instance). The tasks return their result rows, so the tables are complete even
@@ -326,11 +326,10 @@ def run_ray(jobs: Sequence[Job], address: str | None = None) -> Iterator[tuple[i
     if not ray.is_initialized():
         ray.init(address=address)
     task = ray.remote(num_cpus=1)(_ray_run_one)
-    indices = {task.remote(spec, settings): index for index, (spec, settings) in enumerate(jobs)}
-    pending = list(indices)
+    pending = [task.remote(spec, settings) for spec, settings in jobs]
     while pending:
         done, pending = ray.wait(pending, num_returns=1)
-        yield indices[done[0]], ray.get(done[0])
+        yield ray.get(done[0])
 
 
 def _ray_run_one(spec: RunSpec, settings: BenchmarkSettings) -> RunOutcome:
@@ -403,34 +402,31 @@ def run_benchmarks(
     if backend not in ("local", "ray"):
         raise ValueError(f"`backend` must be 'local' or 'ray', got {backend!r}.")
     jobs: list[Job] = []
-    owner: list[int] = []
-    for number, settings in enumerate(grids):
+    for settings in grids:
         specs = settings.grid()
         if not specs:
             raise ValueError("the grid is empty: give at least one algorithm, environment and seed.")
         check_runs_on_disk(settings)
         jobs += [(spec, settings) for spec in specs]
-        owner += [number] * len(specs)
     if backend == "local":
-        pairs: Iterable[tuple[int, RunOutcome]] = run_local(jobs, workers or os.cpu_count() or 1)
+        outcomes_iterator: Iterable[RunOutcome] = run_local(jobs, workers or os.cpu_count() or 1)
     else:
-        pairs = run_ray(jobs, address)
-    outcomes: list[list[RunOutcome]] = [[] for _ in grids]
-    done = 0
+        outcomes_iterator = run_ray(jobs, address)
+    # Each outcome names its grid's log folder, and the folders are distinct.
+    outcomes: dict[str, list[RunOutcome]] = {folder: [] for folder in folders}
     try:
-        for index, outcome in pairs:
-            outcomes[owner[index]].append(outcome)
-            done += 1
+        for done, outcome in enumerate(outcomes_iterator, start=1):
+            outcomes[os.path.normpath(outcome.log_folder)].append(outcome)
             if report is not None:
                 report(outcome, done, len(jobs))
     except KeyboardInterrupt:
         # Ctrl-C: the runs in progress saved a checkpoint; the tables keep the runs that finished.
-        for settings, finished in zip(grids, outcomes, strict=True):
-            write_tables(finished, settings.log_folder)
+        for settings, folder in zip(grids, folders, strict=True):
+            write_tables(outcomes[folder], settings.log_folder)
         raise
     return [
-        BenchmarkResult(finished, write_tables(finished, settings.log_folder))
-        for settings, finished in zip(grids, outcomes, strict=True)
+        BenchmarkResult(outcomes[folder], write_tables(outcomes[folder], settings.log_folder))
+        for settings, folder in zip(grids, folders, strict=True)
     ]
 
 
