@@ -189,8 +189,10 @@ def run(args: argparse.Namespace) -> int:
     """
     apply_runtime_arguments(args)
     if args.optimize:
-        if _given(args):
-            raise CommandError(f"-optimize does not take {', '.join(_given(args))}")
+        # A study's evaluations may use their own environment keywords (a validation split); the rest are a run's.
+        refused = [option for option in _given(args) if option != _NEW_RUN_OPTIONS["eval_env_kwargs"]]
+        if refused:
+            raise CommandError(f"-optimize does not take {', '.join(refused)}")
         return run_tuning(args)
     progress_bar = not args.no_progress_bar
     if args.resume is not None:

@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import argparse
+import os
 
 from sb3_adc.cli.common import CommandError, key_values
 
 TUNING_HELP = """\
 tuning (-optimize): Optuna studies whose first trial is the shipped entry; a trial's value is its mean final
-return over --tuning-seeds. The study resumes when the command is run again; the best entry is written to
-LOG_FOLDER/tuning/STUDY/best_hyperparams.yml (use it with -conf).
+return (or success rate, --objective success) over --tuning-seeds. The study resumes when the command is run
+again; the best entry is written to LOG_FOLDER/tuning/STUDY/best_hyperparams.yml (use it with -conf).
+--eval-env-kwargs evaluates on other environment settings than training (a validation split); --search-space
+FILE gives choices per hyperparameter (a YAML mapping such as "buffer_size: [50000, 200000]").
   sb3-adc train --algo adc --env sb3_adc/NoisyPendulum-v1 -optimize --n-trials 20 --n-jobs 2 --tuning-seeds 0 1
+  sb3-adc train --algo td3 --env sb3_adc/LidarObstacleCourse-v1 -optimize --objective success \
+      --eval-env-kwargs layout_seeds:[2000000,2000100] --search-space space.yml
 """
 
 
@@ -20,7 +25,7 @@ def add_tuning_arguments(parser: argparse.ArgumentParser) -> None:
 
     :param parser: The ``train`` parser
     """
-    from sb3_adc.experiment.tuning import PRUNER_NAMES, SAMPLER_NAMES
+    from sb3_adc.experiment.tuning import OBJECTIVE_NAMES, PRUNER_NAMES, SAMPLER_NAMES
 
     group = parser.add_argument_group("tuning (-optimize)")
     group.add_argument(
@@ -52,6 +57,19 @@ def add_tuning_arguments(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument("--study-name", default=None, help="study name (default: ALGO-ENV)")
     group.add_argument("--sampler-seed", type=int, default=0, help="seed of the sampler (default: 0)")
+    group.add_argument(
+        "--objective",
+        default="return",
+        help=f"a trial's value: the evaluations' {' or '.join(OBJECTIVE_NAMES)} (success: share of episodes ending "
+        "with info['is_success']; default: return)",
+    )
+    group.add_argument(
+        "--search-space",
+        default=None,
+        metavar="FILE",
+        help="YAML mapping of hyperparameters to lists of choices, drawn in every trial beside (or instead of) the "
+        "algorithm's own space",
+    )
 
 
 def run_tuning(args: argparse.Namespace) -> int:
@@ -62,6 +80,7 @@ def run_tuning(args: argparse.Namespace) -> int:
     :return: The exit status
     """
     from sb3_adc.config import check_env_id
+    from sb3_adc.config.loader import read_yaml_file
     from sb3_adc.experiment.tuning import TuneSettings, tune
 
     if args.resume is not None:
@@ -70,6 +89,11 @@ def run_tuning(args: argparse.Namespace) -> int:
         raise CommandError("-optimize needs --algo and --env")
     check_env_id(args.env)
     seeds = args.tuning_seeds if args.tuning_seeds is not None else [max(args.seed, 0)]
+    search_space = {}
+    if args.search_space is not None:
+        if not os.path.isfile(args.search_space):
+            raise CommandError(f"--search-space: no file {args.search_space}")
+        search_space = read_yaml_file(args.search_space)
     settings = TuneSettings(
         algo=args.algo,
         env_id=args.env,
@@ -89,6 +113,9 @@ def run_tuning(args: argparse.Namespace) -> int:
         conf_file=args.conf_file,
         overrides=key_values(args.hyperparams, "-params"),
         env_kwargs=key_values(args.env_kwargs, "--env-kwargs"),
+        eval_env_kwargs=key_values(args.eval_env_kwargs, "--eval-env-kwargs"),
+        objective=args.objective,
+        search_space=search_space,
         log_folder=args.log_folder,
         device=args.device,
         verbose=args.verbose,

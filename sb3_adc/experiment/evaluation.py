@@ -1,9 +1,13 @@
-"""The final evaluation of a trained model: mean and standard deviation of the return over deterministic episodes."""
+"""
+The final evaluation of a trained model: mean and standard deviation of the return over deterministic episodes,
+and the success rate where the environment reports ``info["is_success"]`` at the end of an episode.
+"""
 
 from __future__ import annotations
 
 import json
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
@@ -24,6 +28,8 @@ class FinalEvaluation:
     :param timesteps: Timesteps the model was trained for
     :param returns: Return of each episode
     :param lengths: Length of each episode
+    :param successes: ``info["is_success"]`` at the end of each episode, where the environment reports it (the
+        lidar courses do), else ``None``
     """
 
     algo: str
@@ -32,6 +38,7 @@ class FinalEvaluation:
     timesteps: int
     returns: list[float]
     lengths: list[int]
+    successes: list[bool] | None = None
 
     @property
     def mean_return(self) -> float:
@@ -41,11 +48,18 @@ class FinalEvaluation:
     def std_return(self) -> float:
         return float(np.std(self.returns))
 
+    @property
+    def success_rate(self) -> float | None:
+        """The share of successful episodes, or ``None`` where the environment reports no success."""
+        return None if self.successes is None else float(np.mean(self.successes))
+
     def summary(self) -> str:
         """One line: ``Final evaluation of adc on Pendulum-v1 (seed 0, 20000 steps): -152.3 +/- 80.1 ...``."""
+        success = "" if self.success_rate is None else f", success rate {self.success_rate:.2f}"
         return (
             f"Final evaluation of {self.algo} on {self.env_id} (seed {self.seed}, {self.timesteps} steps): "
             f"mean return {self.mean_return:.2f} +/- {self.std_return:.2f} over {len(self.returns)} deterministic episodes"
+            f"{success}"
         )
 
     def save(self, path: str) -> None:
@@ -55,6 +69,10 @@ class FinalEvaluation:
         :param path: The file
         """
         data = {**asdict(self), "mean_return": self.mean_return, "std_return": self.std_return}
+        if self.successes is None:
+            del data["successes"]  # the file of an environment without successes stays as it was
+        else:
+            data["success_rate"] = self.success_rate
         write_atomically(path, lambda stream: json.dump(data, stream, indent=2))
 
     @classmethod
@@ -66,7 +84,10 @@ class FinalEvaluation:
         """
         with open(path, encoding="utf-8") as stream:
             data = json.load(stream)
-        return cls(**{key: data[key] for key in ("algo", "env_id", "seed", "timesteps", "returns", "lengths")})
+        return cls(
+            **{key: data[key] for key in ("algo", "env_id", "seed", "timesteps", "returns", "lengths")},
+            successes=data.get("successes"),
+        )
 
 
 def evaluate_final(model: BaseAlgorithm, env: VecEnv, n_episodes: int, algo: str, env_id: str, seed: int) -> FinalEvaluation:
@@ -80,12 +101,23 @@ def evaluate_final(model: BaseAlgorithm, env: VecEnv, n_episodes: int, algo: str
     :param env_id: The environment id (recorded)
     :param seed: The run's seed (recorded)
     """
-    returns, lengths = evaluate_policy(model, env, n_eval_episodes=n_episodes, deterministic=True, return_episode_rewards=True)
+    successes: list[bool] = []
+
+    def record_success(local: dict[str, Any], _: dict[str, Any]) -> None:
+        # What SB3's EvalCallback records for its success rate: ``is_success`` of the info that ends an episode.
+        if local["done"] and local["info"].get("is_success") is not None:
+            successes.append(bool(local["info"]["is_success"]))
+
+    returns, lengths = evaluate_policy(
+        model, env, n_eval_episodes=n_episodes, deterministic=True, return_episode_rewards=True, callback=record_success
+    )
+    episode_returns = [float(value) for value in np.atleast_1d(returns)]
     return FinalEvaluation(
         algo=algo,
         env_id=env_id,
         seed=seed,
         timesteps=int(model.num_timesteps),
-        returns=[float(value) for value in np.atleast_1d(returns)],
+        returns=episode_returns,
         lengths=[int(value) for value in np.atleast_1d(lengths)],
+        successes=successes if len(successes) == len(episode_returns) else None,
     )

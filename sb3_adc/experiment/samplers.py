@@ -33,12 +33,35 @@ class Space:
     :param trial: The Optuna trial
     :param entry: The entry the trial starts from (the shipped one, with the fixed overrides)
     :param fixed: Keys fixed by ``-params``: never searched, so that a trial's parameters are what it ran
+    :param listed: Choices given for keys (``--search-space``): such a key is drawn from its choices, whether the
+        algorithm's space searches it (its own range is then replaced) or not (it is added to the search); the
+        values drawn are :attr:`drawn`
     """
 
-    def __init__(self, trial: optuna.Trial, entry: Mapping[str, Any], fixed: Collection[str] = ()):
+    def __init__(
+        self,
+        trial: optuna.Trial,
+        entry: Mapping[str, Any],
+        fixed: Collection[str] = (),
+        listed: Mapping[str, Sequence[Any]] | None = None,
+    ):
         self.trial = trial
-        self.entry = entry
         self.fixed = frozenset(fixed)
+        self.listed = dict(listed or {})
+        #: The listed keys' values, drawn first so that the algorithm's space sees them in :attr:`entry` (the
+        #: exploration schedule is searched only where the noise drawn is epsilon-gated, say).
+        self.drawn: dict[str, Any] = {}
+        for key, choices in self.listed.items():
+            if all(choice is None or isinstance(choice, (bool, int, float, str)) for choice in choices):
+                self.drawn[key] = trial.suggest_categorical(key, list(choices))
+            else:
+                # Optuna's categorical choices are scalars: other values (``env_wrapper`` lists, say) by index.
+                self.drawn[key] = choices[trial.suggest_categorical(f"{key}_choice", list(range(len(choices))))]
+        self.entry = {**entry, **self.drawn}
+
+    def searches(self, key: str) -> bool:
+        """Whether the algorithm's own space draws ``key``: neither fixed nor listed."""
+        return key not in self.fixed and key not in self.listed
 
     def categorical(self, params: dict[str, Any], key: str, choices: Sequence[Any], name: str | None = None) -> None:
         """
@@ -49,7 +72,7 @@ class Space:
         :param choices: The choices
         :param name: The Optuna parameter's name
         """
-        if key not in self.fixed:
+        if self.searches(key):
             params[key] = self.trial.suggest_categorical(name or key, list(choices))
 
     def log_float(self, params: dict[str, Any], key: str, low: float, high: float) -> None:
@@ -61,7 +84,7 @@ class Space:
         :param low: The lower bound
         :param high: The upper bound
         """
-        if key not in self.fixed:
+        if self.searches(key):
             params[key] = self.trial.suggest_float(key, low, high, log=True)
 
     def uniform(self, params: dict[str, Any], key: str, low: float, high: float) -> None:
@@ -73,7 +96,7 @@ class Space:
         :param low: The lower bound
         :param high: The upper bound
         """
-        if key not in self.fixed:
+        if self.searches(key):
             params[key] = self.trial.suggest_float(key, low, high)
 
 
@@ -115,7 +138,7 @@ def _exploration(space: Space) -> dict[str, Any]:
 
 def _critic_rate(space: Space, params: Mapping[str, Any]) -> dict[str, Any]:
     """The critic's learning rate as a multiple of the actor's (the paper uses twice the actor's)."""
-    if "critic_learning_rate" in space.fixed:
+    if not space.searches("critic_learning_rate"):
         return {}
     ratio = space.trial.suggest_categorical("critic_rate_ratio", [1.0, 2.0, 5.0])
     learning_rate = params.get("learning_rate", space.entry.get("learning_rate", 1e-3))
@@ -212,4 +235,15 @@ SAMPLERS: dict[str, Sampler] = {
     "dqn": sample_dqn,
 }
 
-__all__ = ["NET_ARCHS", "SAMPLERS", "Sampler", "Space"]
+
+def sample(algo: str, space: Space) -> dict[str, Any]:
+    """
+    A trial's values: the algorithm's space, with the listed keys drawn from their choices.
+
+    :param algo: The algorithm (a key of :data:`SAMPLERS`)
+    :param space: The trial's search space
+    """
+    return {**SAMPLERS[algo](space), **space.drawn}
+
+
+__all__ = ["NET_ARCHS", "SAMPLERS", "Sampler", "Space", "sample"]

@@ -3,8 +3,9 @@ Hyperparameter tuning with Optuna (``sb3-adc train -optimize``), on the same eng
 
 A trial draws hyperparameters from the algorithm's search space (:mod:`~sb3_adc.experiment.samplers`), writes
 them as a hyperparameter file next to its runs, and trains them with :func:`~sb3_adc.experiment.training.train`
-on each tuning seed; its value is the mean final evaluation return over the seeds. Periodic evaluations are
-reported to the pruner, as in the RL Zoo's ``TrialEvalCallback``.
+on each tuning seed; its value is the mean over the seeds of the final evaluation's return (``objective="return"``,
+the RL Zoo's) or success rate (``"success"``: the share of episodes ending with ``info["is_success"]``). Periodic
+evaluations of the same quantity are reported to the pruner, as in the RL Zoo's ``TrialEvalCallback``.
 
 Differences from the RL Zoo, each for a reason:
 
@@ -12,6 +13,11 @@ Differences from the RL Zoo, each for a reason:
   good as the shipped one on the tuning seeds, and the shipped settings of a baseline (at least as good as the
   RL Zoo's) take part in the comparison.
 - A trial may train several seeds, so that one lucky seed does not pick the winner.
+- The evaluations can use other environment keywords than training (``eval_env_kwargs``): a validation split of
+  procedural layouts, say, so that what is tuned is generalisation and the test split stays unseen.
+- The search space can be given choices per key (``search_space``, ``--search-space FILE``): keys the
+  algorithm's space does not search (the buffer size, an ``env_wrapper``), or other choices for one it does.
+  Optuna's samplers take a space defined by the objective; the RL Zoo's is fixed in its code.
 - ``--n-jobs`` runs worker processes (not threads, which share one interpreter lock) on one study, and the
   study lives in a journal file by default, so a study interrupted at any point resumes where it stopped and
   several machines can share a study through ``--storage``. The budget is exactly ``n_trials`` finished trials
@@ -34,6 +40,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import IO, Any
 
+import gymnasium as gym
 import numpy as np
 import optuna
 import torch as th
@@ -54,14 +61,22 @@ from sb3_adc.config.loader import (
 from sb3_adc.experiment.divergence import TrainingDiverged
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
 from sb3_adc.experiment.layout import env_name
-from sb3_adc.experiment.samplers import SAMPLERS, Space
-from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings
+from sb3_adc.experiment.samplers import SAMPLERS, Space, sample
+from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings, check_env_kwargs
 from sb3_adc.experiment.training import train
 
 #: ``--sampler`` choices.
 SAMPLER_NAMES = ("tpe", "random")
 #: ``--pruner`` choices.
 PRUNER_NAMES = ("median", "halving", "none")
+#: ``--objective`` choices: what a trial's value is the mean of (the final evaluation's return or success rate).
+OBJECTIVE_NAMES = ("return", "success")
+#: Bounds of a search space (``--search-space``): keys, and choices per key.
+MAX_SEARCH_KEYS = 32
+MAX_CHOICES = 32
+#: Longest episode of random actions with which ``objective="success"`` checks that the environment reports
+#: ``info["is_success"]`` before a study starts.
+SUCCESS_PROBE_MAX_STEPS = 10_000
 #: Keys of the epsilon-gated noise, dropped from an entry whose trial draws another noise type.
 _EPSILON_KEYS = ("epsilon_decay_steps", "epsilon_initial", "epsilon_final")
 _SHIPPED = "shipped"
@@ -84,6 +99,7 @@ class TuneSettings:
     :param n_evaluations: Evaluations per run reported to the pruner
     :param eval_episodes: Deterministic episodes of each of those evaluations
     :param final_eval_episodes: Deterministic episodes of each run's final evaluation (the trial's value)
+    :param objective: ``return`` (mean return, the RL Zoo's) or ``success`` (success rate) of the evaluations
     :param n_jobs: Worker processes
     :param storage: Optuna storage: a database URL (``sqlite:///study.db``, needs SQLAlchemy) or a journal file
         (``*.log``); ``None``: ``study.log`` in the study folder
@@ -92,6 +108,9 @@ class TuneSettings:
     :param conf_file: Hyperparameter file whose entry is the starting point (``None``: the shipped ``{algo}.yml``)
     :param overrides: Values fixed in every trial (``-params``), outside the search
     :param env_kwargs: Keyword arguments of ``gym.make``
+    :param eval_env_kwargs: Keyword arguments of ``gym.make`` for the evaluations only (periodic and final),
+        replacing those keys of ``env_kwargs`` (held-out layouts, say)
+    :param search_space: Choices per key, drawn in every trial (see :class:`~sb3_adc.experiment.samplers.Space`)
     :param log_folder: Root of the log layout
     :param device: PyTorch device
     :param verbose: SB3 verbosity of the runs
@@ -108,6 +127,7 @@ class TuneSettings:
     n_evaluations: int = 5
     eval_episodes: int = 5
     final_eval_episodes: int = 10
+    objective: str = "return"
     n_jobs: int = 1
     storage: str | None = None
     study_name: str | None = None
@@ -115,6 +135,8 @@ class TuneSettings:
     conf_file: str | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
     env_kwargs: dict[str, Any] = field(default_factory=dict)
+    eval_env_kwargs: dict[str, Any] = field(default_factory=dict)
+    search_space: dict[str, list[Any]] = field(default_factory=dict)
     log_folder: str = "logs"
     device: str = "auto"
     verbose: int = 0
@@ -128,6 +150,11 @@ class TuneSettings:
             raise HyperparamsError("command line", "--sampler", f"{self.sampler!r}; accepted: {', '.join(SAMPLER_NAMES)}")
         if self.pruner not in PRUNER_NAMES:
             raise HyperparamsError("command line", "--pruner", f"{self.pruner!r}; accepted: {', '.join(PRUNER_NAMES)}")
+        if self.objective not in OBJECTIVE_NAMES:
+            raise HyperparamsError(
+                "command line", "--objective", f"{self.objective!r}; accepted: {', '.join(OBJECTIVE_NAMES)}"
+            )
+        self._check_search_space()
         for option, value, minimum in (
             ("--n-trials", self.n_trials, 1),
             ("--n-jobs", self.n_jobs, 1),
@@ -143,6 +170,29 @@ class TuneSettings:
         if not self.seeds or any(seed < 0 for seed in self.seeds) or len(set(self.seeds)) != len(self.seeds):
             raise HyperparamsError("command line", "--tuning-seeds", f"distinct seeds >= 0 are needed, got {list(self.seeds)}")
         self.seeds = tuple(int(seed) for seed in self.seeds)
+
+    def _check_search_space(self) -> None:
+        """The shape of :attr:`search_space`; its values are checked by :func:`check_search_space`."""
+        space = self.search_space
+        if not isinstance(space, dict) or not all(isinstance(key, str) for key in space):
+            raise HyperparamsError(
+                "command line", "--search-space", f"must map hyperparameter names to lists of choices, got {space!r}"
+            )
+        if len(space) > MAX_SEARCH_KEYS:
+            raise HyperparamsError("command line", "--search-space", f"at most {MAX_SEARCH_KEYS} keys, got {len(space)}")
+        for key, choices in space.items():
+            if not isinstance(choices, list) or not 1 <= len(choices) <= MAX_CHOICES:
+                raise HyperparamsError(
+                    "command line", f"--search-space {key}", f"must be a list of 1 to {MAX_CHOICES} choices, got {choices!r}"
+                )
+            if key in self.overrides:
+                raise HyperparamsError(
+                    "command line", f"--search-space {key}", "is fixed by -params: a key is either fixed or searched"
+                )
+            if key in ("n_timesteps", "policy"):
+                raise HyperparamsError(
+                    "command line", f"--search-space {key}", "is not searched: every trial has the same budget and policy"
+                )
 
     @property
     def name(self) -> str:
@@ -165,7 +215,7 @@ class TuneResult:
     The outcome of a study.
 
     :param study_dir: The study's folder
-    :param best_value: Mean final return of the best trial
+    :param best_value: The best trial's value (mean final return or success rate over the seeds)
     :param best_params: Its sampled hyperparameters (empty for the shipped entry)
     :param best_hyperparams_file: The hyperparameter file of the best trial (``-conf``)
     :param n_finished: Finished trials (complete or pruned)
@@ -187,7 +237,13 @@ def tune(settings: TuneSettings) -> TuneResult:
     """
     base = _base_entry(settings)
     # Resolve the starting entry once: invalid hyperparameters stop here, before a folder is made.
-    load_hyperparams(settings.algo, settings.env_id, settings.conf_file, settings.overrides, settings.n_timesteps)
+    config = load_hyperparams(settings.algo, settings.env_id, settings.conf_file, settings.overrides, settings.n_timesteps)
+    check_search_space(settings)
+    evaluation_kwargs = {**config.env_kwargs, **settings.env_kwargs, **settings.eval_env_kwargs}
+    if settings.eval_env_kwargs:
+        check_env_kwargs(settings.env_id, evaluation_kwargs, "eval_env_kwargs")
+    if settings.objective == "success":
+        check_success_reported(settings, config.wrap_env(gym.make(settings.env_id, **evaluation_kwargs)))
     os.makedirs(settings.study_dir, exist_ok=True)
     study = _open_study(settings, worker=0)
     _fail_dead_trials(study)
@@ -235,14 +291,16 @@ def _work(settings: TuneSettings, base: dict[str, Any], worker: int, n_trials: i
 def _objective(trial: optuna.Trial, settings: TuneSettings, base: dict[str, Any]) -> float:
     trial.set_user_attr(_WORKER, f"{socket.gethostname()}:{os.getpid()}")
     shipped = bool(trial.user_attrs.get(_SHIPPED))
-    params = {} if shipped else SAMPLERS[settings.algo](Space(trial, {**base, **settings.overrides}, settings.overrides))
+    params = {}
+    if not shipped:
+        params = sample(settings.algo, Space(trial, {**base, **settings.overrides}, settings.overrides, settings.search_space))
     entry = trial_entry(base, params, settings.overrides)
     trial_dir = os.path.join(settings.study_dir, f"trial_{trial.number}")
     os.makedirs(trial_dir, exist_ok=True)
     hyperparams_file = os.path.join(trial_dir, "hyperparams.yml")
     _write_entry(hyperparams_file, settings.env_id, entry, f"trial {trial.number} of study {settings.name}")
     trial.set_user_attr("hyperparams", hyperparams_file)
-    returns = []
+    values = []
     for index, seed in enumerate(settings.seeds):
         callback = TrialEvalCallback(trial, settings, hyperparams_file, seed, step_offset=index * settings.n_evaluations)
         run_settings = TrainSettings(
@@ -251,6 +309,7 @@ def _objective(trial: optuna.Trial, settings: TuneSettings, base: dict[str, Any]
             seed=seed,
             conf_file=hyperparams_file,
             env_kwargs=dict(settings.env_kwargs),
+            eval_env_kwargs=dict(settings.eval_env_kwargs),
             n_timesteps=settings.n_timesteps,
             log_folder=settings.log_folder,
             run_dir=os.path.join(trial_dir, f"seed_{seed}"),
@@ -268,12 +327,84 @@ def _objective(trial: optuna.Trial, settings: TuneSettings, base: dict[str, Any]
             raise optuna.TrialPruned(f"seed {seed}: {error}") from None
         if callback.is_pruned:
             raise optuna.TrialPruned(f"pruned at evaluation {callback.n_reports} of seed {seed}")
-        returns.append(result.final_evaluation.mean_return)
-        trial.set_user_attr(f"return_seed_{seed}", returns[-1])
-    value = float(np.mean(returns))
+        final = result.final_evaluation
+        trial.set_user_attr(f"return_seed_{seed}", final.mean_return)
+        if settings.objective == "success":
+            trial.set_user_attr(f"success_seed_{seed}", final.success_rate)
+        values.append(objective_value(settings, final.mean_return, final.success_rate))
+    value = float(np.mean(values))
     if not math.isfinite(value):
         raise optuna.TrialPruned(f"non-finite return {value}")
     return value
+
+
+def objective_value(settings: TuneSettings, mean_return: float, success_rate: float | None) -> float:
+    """
+    What an evaluation gives the study: its mean return, or its success rate (``objective="success"``).
+
+    :raises HyperparamsError: for ``objective="success"`` where the environment reports no ``info["is_success"]``
+    """
+    if settings.objective == "return":
+        return mean_return
+    if success_rate is None:
+        raise HyperparamsError(
+            "command line",
+            "--objective",
+            f"'success' needs episodes that end with info['is_success'], which {settings.env_id} does not report; "
+            f"accepted: {', '.join(OBJECTIVE_NAMES)}",
+        )
+    return success_rate
+
+
+def check_success_reported(settings: TuneSettings, env: gym.Env) -> None:
+    """
+    One episode of random actions on an evaluation environment: ``objective="success"`` needs the last step's
+    ``info["is_success"]``, which SB3's evaluations read. Checked before a study starts, so that an environment
+    without it stops the command before anything is written.
+
+    :param env: The evaluation environment, with the entry's wrappers (closed here)
+    :raises HyperparamsError: naming ``--objective`` if the episode ends without ``is_success`` or does not end
+    """
+    problem = f"no episode ended within {SUCCESS_PROBE_MAX_STEPS} random steps"
+    try:
+        env.reset(seed=0)
+        env.action_space.seed(0)
+        for _ in range(SUCCESS_PROBE_MAX_STEPS):
+            _, _, terminated, truncated, info = env.step(env.action_space.sample())
+            if terminated or truncated:
+                if info.get("is_success") is not None:
+                    return
+                problem = "its episodes end without info['is_success']"
+                break
+    finally:
+        env.close()
+    raise HyperparamsError(
+        "command line",
+        "--objective",
+        f"'success' is the share of episodes ending with info['is_success'], but on {settings.env_id} {problem}; "
+        f"accepted: {', '.join(OBJECTIVE_NAMES)}",
+    )
+
+
+def check_search_space(settings: TuneSettings) -> None:
+    """
+    Every choice of ``settings.search_space`` resolved with the starting entry, as ``-params`` would be, so that a
+    choice the loader rejects stops the study before a folder is made.
+
+    :raises HyperparamsError: naming the key and the choice
+    """
+    for key, choices in settings.search_space.items():
+        for choice in choices:
+            try:
+                load_hyperparams(
+                    settings.algo,
+                    settings.env_id,
+                    settings.conf_file,
+                    {**settings.overrides, key: choice},
+                    settings.n_timesteps,
+                )
+            except HyperparamsError as error:
+                raise HyperparamsError("command line", f"--search-space {key}", f"choice {choice!r}: {error}") from None
 
 
 def trial_entry(base: Mapping[str, Any], params: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
@@ -293,9 +424,10 @@ def trial_entry(base: Mapping[str, Any], params: Mapping[str, Any], overrides: M
 
 class TrialEvalCallback(EvalCallback):
     """
-    Evaluate a run ``n_evaluations`` times and report each mean return to the trial, stopping the run when the
-    pruner says so (the RL Zoo's ``TrialEvalCallback``, with the evaluation environment built from the trial's
-    entry and the report steps of several seeds laid end to end).
+    Evaluate a run ``n_evaluations`` times and report each mean return (or success rate, as the study's objective
+    says) to the trial, stopping the run when the pruner says so (the RL Zoo's ``TrialEvalCallback``, with the
+    evaluation environment built from the trial's entry and ``eval_env_kwargs``, and the report steps of several
+    seeds laid end to end).
 
     :param trial: The Optuna trial
     :param settings: The study's settings
@@ -306,8 +438,7 @@ class TrialEvalCallback(EvalCallback):
 
     def __init__(self, trial: optuna.Trial, settings: TuneSettings, hyperparams_file: str, seed: int, step_offset: int):
         config = load_hyperparams(settings.algo, settings.env_id, hyperparams_file, n_timesteps=settings.n_timesteps)
-        if settings.env_kwargs:
-            config.env_kwargs.update(settings.env_kwargs)
+        config.env_kwargs.update({**settings.env_kwargs, **settings.eval_env_kwargs})
         eval_env = wrap_vec_env(config, make_run_envs(config, 1, seed + EVAL_SEED_OFFSET), training=False)
         super().__init__(
             eval_env,
@@ -317,6 +448,7 @@ class TrialEvalCallback(EvalCallback):
             verbose=0,
         )
         self.trial = trial
+        self.settings = settings
         self.step_offset = step_offset
         self.n_reports = 0
         self.is_pruned = False
@@ -324,7 +456,10 @@ class TrialEvalCallback(EvalCallback):
     def _on_step(self) -> bool:
         if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
             super()._on_step()
-            self.trial.report(self.last_mean_reward, self.step_offset + self.n_reports)
+            # EvalCallback keeps the is_success of the evaluation's episodes (SB3 logs their mean as success_rate).
+            success_rate = float(np.mean(self._is_success_buffer)) if self._is_success_buffer else None
+            value = objective_value(self.settings, float(self.last_mean_reward), success_rate)
+            self.trial.report(value, self.step_offset + self.n_reports)
             self.n_reports += 1
             if self.trial.should_prune():
                 self.is_pruned = True
@@ -424,6 +559,11 @@ def _report(settings: TuneSettings, study: optuna.Study) -> TuneResult:
                 "shipped": bool(trial.user_attrs.get(_SHIPPED)),
                 "duration_s": "" if trial.duration is None else round(trial.duration.total_seconds(), 1),
                 **{f"return_seed_{seed}": trial.user_attrs.get(f"return_seed_{seed}", "") for seed in settings.seeds},
+                **{
+                    f"success_seed_{seed}": trial.user_attrs.get(f"success_seed_{seed}", "")
+                    for seed in settings.seeds
+                    if settings.objective == "success"
+                },
                 "params": yaml.safe_dump(trial.params, default_flow_style=True, width=10**6).strip(),
             }
         )
@@ -446,15 +586,28 @@ def _report(settings: TuneSettings, study: optuna.Study) -> TuneResult:
     best_entry = read_yaml_file(str(best.user_attrs["hyperparams"]))[settings.env_id]
     best_file = os.path.join(settings.study_dir, "best_hyperparams.yml")
     origin = "the shipped entry" if best.user_attrs.get(_SHIPPED) else f"trial {best.number}"
+    quantity = "mean final return" if settings.objective == "return" else "mean final success rate"
     _write_entry(
         best_file,
         settings.env_id,
         best_entry,
-        f"Best of {len(_finished(study))} trials of study {settings.name} ({origin}): mean final return "
+        f"Best of {len(_finished(study))} trials of study {settings.name} ({origin}): {quantity} "
         f"{best.value:.2f} over seeds {list(settings.seeds)}, {settings.n_timesteps or 'entry'} timesteps",
     )
-    print(f"Best: {origin}, mean final return {best.value:.2f}; hyperparameters in {best_file} (use with -conf)")
+    print(f"Best: {origin}, {quantity} {best.value:.2f}; hyperparameters in {best_file} (use with -conf)")
     return TuneResult(settings.study_dir, float(best.value), dict(best.params), best_file, len(_finished(study)))  # type: ignore[arg-type]
 
 
-__all__ = ["PRUNER_NAMES", "SAMPLER_NAMES", "TrialEvalCallback", "TuneResult", "TuneSettings", "trial_entry", "tune"]
+__all__ = [
+    "OBJECTIVE_NAMES",
+    "PRUNER_NAMES",
+    "SAMPLER_NAMES",
+    "TrialEvalCallback",
+    "TuneResult",
+    "TuneSettings",
+    "check_search_space",
+    "check_success_reported",
+    "objective_value",
+    "trial_entry",
+    "tune",
+]

@@ -52,6 +52,11 @@ def test_train_writes_the_zoo_layout_and_prints_the_final_evaluation(cli, train_
     final = FinalEvaluation.load(run_dir / "Pendulum-v1" / "final_evaluation.json")
     assert (final.timesteps, len(final.returns)) == (300, 2)
     assert f"mean return {final.mean_return:.2f} +/- {final.std_return:.2f} over 2 deterministic episodes" in out
+    # Pendulum reports no is_success: no success rate, and the file is what it was before success rates.
+    assert final.successes is None
+    assert final.success_rate is None
+    assert "success" not in (run_dir / "Pendulum-v1" / "final_evaluation.json").read_text()
+    assert "success rate" not in out
     model = ADC.load(run_dir / "Pendulum-v1.zip")
     assert model.num_timesteps == 300
     assert model.policy.n_intervals == 10

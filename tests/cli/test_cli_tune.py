@@ -7,6 +7,8 @@ import pytest
 import yaml
 
 from sb3_adc.config import load_hyperparams
+from sb3_adc.experiment import FinalEvaluation, TrainSettings
+from sb3_adc.experiment.tuning import TrialEvalCallback, TuneSettings
 
 
 def tune_args(train_args, algo, log_folder, *extra):
@@ -120,3 +122,104 @@ def test_optimize_refuses_resume(cli, train_args, tmp_path):
     status, _, err = cli(*tune_args(train_args, "adc", tmp_path, "--resume"))
     assert status == 2
     assert "--resume" in err
+
+
+VALIDATION_LAYOUTS = "layout_seeds:[2000000,2000100]"
+LIDAR = "sb3_adc/LidarObstacleCourse-v1"
+
+
+def lidar_tune_args(train_args, log_folder, *extra):
+    return [*train_args("adc", log_folder, env=LIDAR), "-optimize", "--n-evaluations", 2, "--n-startup-trials", 1, *extra]
+
+
+def test_success_objective_tunes_on_the_validation_layouts(cli, train_args, tmp_path):
+    """A trial's value is the final success rate, evaluated on the layouts of --eval-env-kwargs."""
+    extra = ["--n-trials", 2, "--objective", "success", "--eval-env-kwargs", VALIDATION_LAYOUTS, "--final-eval-episodes", 4]
+    status, out, err = cli(*lidar_tune_args(train_args, tmp_path, *extra))
+    assert status == 0, err
+    study_dir = tmp_path / "tuning" / "adc-sb3_adc-LidarObstacleCourse-v1"
+    trials = read_trials(study_dir)
+    assert len(trials) == 2
+    for row in trials:
+        run_dir = study_dir / f"trial_{row['number']}" / "seed_0"
+        final = FinalEvaluation.load(run_dir / "sb3_adc-LidarObstacleCourse-v1" / "final_evaluation.json")
+        assert len(final.successes) == 4
+        # The value is the success rate, not the return.
+        assert float(row["value"]) == pytest.approx(final.success_rate, abs=1e-3)
+        assert float(row["success_seed_0"]) == pytest.approx(final.success_rate)
+        assert float(row["return_seed_0"]) == pytest.approx(final.mean_return)
+        assert TrainSettings.of_run(str(run_dir)).eval_env_kwargs == {"layout_seeds": [2_000_000, 2_000_100]}
+    assert "mean final success rate" in out
+
+
+def test_trial_evaluations_use_the_evaluation_keywords(tiny_conf):
+    """The pruner's evaluations run on the layouts of ``eval_env_kwargs``, training on those of the entry."""
+    settings = TuneSettings(
+        algo="adc",
+        env_id=LIDAR,
+        conf_file=str(tiny_conf / "adc.yml"),
+        objective="success",
+        eval_env_kwargs={"layout_seeds": [2_000_000, 2_000_100]},
+    )
+    trial = optuna.create_study().ask()
+    callback = TrialEvalCallback(trial, settings, str(tiny_conf / "adc.yml"), seed=0, step_offset=0)
+    env = callback.eval_env.envs[0].unwrapped
+    assert env.layout_seeds == (2_000_000, 2_000_100)
+    callback.eval_env.close()
+
+
+def test_success_objective_refused_where_episodes_report_no_success(cli, train_args, tmp_path):
+    log_folder = tmp_path / "logs"
+    status, _, err = cli(*tune_args(train_args, "adc", log_folder, "--objective", "success"))
+    assert status == 2
+    assert "--objective" in err
+    assert "is_success" in err
+    assert not log_folder.exists()
+
+
+def test_search_space_file_adds_and_replaces_choices(cli, train_args, tmp_path):
+    """Listed keys are drawn from their choices: new keys join the search, a searched key takes the listed range."""
+    space = tmp_path / "space.yml"
+    space.write_text("learning_rate: [0.002]\nbuffer_size: [500, 700]\ntrain_freq: [[1, step], [1, episode]]\n")
+    status, _, err = cli(*tune_args(train_args, "adc", tmp_path / "logs", "--n-trials", 3, "--search-space", space))
+    assert status == 0, err
+    study_dir = tmp_path / "logs" / "tuning" / "adc-Pendulum-v1"
+    trials = read_trials(study_dir)
+    assert trials[0]["params"] == "{}"  # the shipped entry, as it is
+    shipped = yaml.safe_load((study_dir / "trial_0" / "hyperparams.yml").read_text())["Pendulum-v1"]
+    assert shipped["buffer_size"] == 1000
+    for row in trials[1:]:
+        sampled = yaml.safe_load(row["params"])
+        entry = yaml.safe_load((study_dir / f"trial_{row['number']}" / "hyperparams.yml").read_text())["Pendulum-v1"]
+        assert sampled["learning_rate"] == entry["learning_rate"] == 0.002
+        assert entry["buffer_size"] == sampled["buffer_size"] in (500, 700)
+        assert entry["train_freq"] == [[1, "step"], [1, "episode"]][sampled["train_freq_choice"]]
+        # The algorithm's own space sees the listed learning rate: the critic's is a multiple of it.
+        assert entry["critic_learning_rate"] == pytest.approx(0.002 * sampled["critic_rate_ratio"])
+        assert "gamma" in sampled  # the rest of ADC's space is still searched
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("gamma: [0.9, 2]", "--search-space gamma"),
+        ("gamma: 0.9", "--search-space gamma"),
+        ("[gamma]", "--search-space"),
+        ("n_timesteps: [100, 200]", "--search-space n_timesteps"),
+        ("n_intervals: [4, 8]", "fixed by -params"),
+    ],
+)
+def test_bad_search_space_exits_2_before_writing(cli, train_args, tmp_path, text, message):
+    space = tmp_path / "space.yml"
+    space.write_text(text + "\n")
+    log_folder = tmp_path / "logs"
+    status, _, err = cli(*tune_args(train_args, "adc", log_folder, "--search-space", space, "-params", "n_intervals:5"))
+    assert status == 2
+    assert message in err
+    assert not log_folder.exists()
+
+
+def test_missing_search_space_file_exits_2(cli, train_args, tmp_path):
+    status, _, err = cli(*tune_args(train_args, "adc", tmp_path / "logs", "--search-space", tmp_path / "none.yml"))
+    assert status == 2
+    assert "--search-space" in err
