@@ -43,9 +43,9 @@ import gymnasium as gym
 import numpy as np
 import pandas as pd
 import torch as th
-from procedural_generalisation import layout_success, load_for_scoring, report, training_time
+from procedural_generalisation import layout_success, load_for_scoring, read_configs, report, training_time
 
-from sb3_adc.config.loader import HyperparamsError, read_yaml_file
+from sb3_adc.config.loader import HyperparamsError
 from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSpec, run_benchmarks
 from sb3_adc.experiment.layout import RunLayout
 from sb3_adc.experiment.plots import plot_learning_curves
@@ -67,23 +67,6 @@ TARGET = 0.9
 
 def config_name(gamma: float | None) -> str:
     return SHIPPED if gamma is None else f"gamma {gamma:g}"
-
-
-def read_configs(path: str) -> dict[str, dict[str, Any]]:
-    """
-    The configurations of a ``--configs`` file: configuration name -> overrides of the shipped entry.
-
-    :raises HyperparamsError: for a file that is not a non-empty mapping of names to mappings
-    """
-    content = read_yaml_file(path)
-    if not isinstance(content, dict) or not content:
-        raise HyperparamsError(path, None, "must be a non-empty mapping: configuration name -> {key: value} overrides")
-    for name, overrides in content.items():
-        if not isinstance(name, str) or not name.strip():
-            raise HyperparamsError(path, None, f"configuration names must be non-empty strings, got {name!r}")
-        if not isinstance(overrides, dict):
-            raise HyperparamsError(path, name, f"must be a mapping of key: value overrides, got {type(overrides).__name__}")
-    return content
 
 
 def score_checkpoint(run_dir: str, config: str, seed: int, timesteps: int, model_path: str, n_layouts: int) -> dict[str, Any]:

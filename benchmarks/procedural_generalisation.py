@@ -12,6 +12,10 @@ success rate of each test set; per algorithm and test set, the IQM and mean of t
 stratified-bootstrap CIs (rliable), and the probability that ADC's rate exceeds each other algorithm's. The paths
 of every run on the first ``--trajectory-layouts`` held-out layouts are kept (``trajectories.csv.gz``) and drawn.
 
+``--configs FILE`` trains the algorithms a YAML file names, each with its overrides of the shipped entry (a mapping
+of algorithm to ``key: value`` overrides, checked as the engine checks ``-params``; ``n_timesteps`` sets the
+budget); its results go to folders named after the file (``{env}_{file stem}``).
+
 Training is ``sb3-adc benchmark``'s engine (resumable, one process per run, same seeds and evaluation for every
 algorithm); the runs go to ``benchmarks/runs/procedural_generalisation/`` (not committed), the tables to
 ``benchmarks/results/procedural_generalisation/{name}/``, the figures to
@@ -23,6 +27,7 @@ Usage::
     python benchmarks/procedural_generalisation.py --workers 2                 # clean observations, kinematic robot
     python benchmarks/procedural_generalisation.py --env sb3_adc/LidarObstacleCourseNoisy-v1 --workers 2
     python benchmarks/procedural_generalisation.py --robot wheeled --workers 2   # the robot with dynamics
+    python benchmarks/procedural_generalisation.py --configs benchmarks/configs/procedural_generalisation/FILE.yml --workers 2
     python benchmarks/procedural_generalisation.py --quick                     # a smoke run
     python benchmarks/procedural_generalisation.py --replot                    # redraw the figures, no training
 """
@@ -45,7 +50,7 @@ import pandas as pd
 import torch as th
 
 from sb3_adc.config.experiment_config import ExperimentConfig
-from sb3_adc.config.loader import load_hyperparams
+from sb3_adc.config.loader import HyperparamsError, load_hyperparams, read_yaml_file
 from sb3_adc.experiment.benchmark import FINAL_CSV, BenchmarkSettings, RunOutcome, RunSpec, run_benchmark
 from sb3_adc.experiment.enjoy import load_model, load_run
 from sb3_adc.experiment.plots import plot_final_performance, plot_trajectories
@@ -78,6 +83,24 @@ def report(outcome: RunOutcome, done: int, total: int, by_folder: bool = False) 
     print(f"[{done}/{total}] {grid}{outcome.spec}: {outcome.status}{final}", flush=True)
     if outcome.status == "failed":
         print(outcome.error, flush=True)
+
+
+def read_configs(path: str) -> dict[str, dict[str, Any]]:
+    """
+    The configurations of a ``--configs`` file: configuration name (an algorithm, for this script) -> overrides of
+    the shipped entry.
+
+    :raises HyperparamsError: for a file that is not a non-empty mapping of names to mappings
+    """
+    content = read_yaml_file(path)
+    if not isinstance(content, dict) or not content:
+        raise HyperparamsError(path, None, "must be a non-empty mapping: configuration name -> {key: value} overrides")
+    for name, overrides in content.items():
+        if not isinstance(name, str) or not name.strip():
+            raise HyperparamsError(path, None, f"configuration names must be non-empty strings, got {name!r}")
+        if not isinstance(overrides, dict):
+            raise HyperparamsError(path, name, f"must be a mapping of key: value overrides, got {type(overrides).__name__}")
+    return content
 
 
 def episode_success(model: Any, env: gym.Env, **reset: Any) -> bool:
@@ -215,11 +238,16 @@ def score_run(
     return [run | row for row in rows], [path.assign(algo=algo, seed=seed)[["algo", "seed", *path.columns]] for path in paths]
 
 
-def robot_overrides(algo: str, env_id: str, robot: str) -> dict[str, Any]:
-    """The entry's ``env_kwargs`` with another robot (an override replaces the whole ``env_kwargs``)."""
+def robot_overrides(algo: str, env_id: str, robot: str, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    """
+    ``overrides`` (of a ``--configs`` file) with another robot: the ``env_kwargs`` they give, or the entry's, with
+    ``robot`` (an override replaces the whole ``env_kwargs``).
+    """
+    overrides = dict(overrides or {})
     if robot == "kinematic":
-        return {}
-    return {"env_kwargs": {**load_hyperparams(algo, env_id).env_kwargs, "robot": robot}}
+        return overrides
+    env_kwargs = overrides.get("env_kwargs", load_hyperparams(algo, env_id).env_kwargs)
+    return {**overrides, "env_kwargs": {**env_kwargs, "robot": robot}}
 
 
 def as_scores(scores: pd.DataFrame) -> pd.DataFrame:
@@ -249,6 +277,7 @@ def main() -> None:
     parser.add_argument("--env", default="sb3_adc/LidarObstacleCourse-v1", help="the procedural environment id")
     parser.add_argument("--robot", choices=["kinematic", "wheeled"], default="kinematic", help="robot model")
     parser.add_argument("--algos", nargs="+", choices=ALGOS, default=ALGOS)
+    parser.add_argument("--configs", help="YAML file: algorithm -> overrides of its shipped entry (the algorithms trained)")
     parser.add_argument("--workers", type=int, default=1, help="parallel runs and scorings")
     parser.add_argument("--course-episodes", type=int, default=10, help="jittered episodes per course file")
     parser.add_argument("--reps", type=int, default=5000, help="bootstrap replications")
@@ -259,12 +288,28 @@ def main() -> None:
     if min(args.workers, args.course_episodes, args.reps, args.trajectory_layouts) < 1:
         parser.error("--workers, --course-episodes, --reps and --trajectory-layouts must be >= 1")
     th.set_num_threads(1)
-    name = args.env.split("/")[-1] + ("" if args.robot == "kinematic" else f"_{args.robot}") + ("_quick" if args.quick else "")
-    seeds, n_timesteps, n_layouts, reps = SEEDS, None, len(range(*TEST_LAYOUT_SEEDS)), args.reps
+    configs: dict[str, dict[str, Any]] = {algo: {} for algo in args.algos}
+    if args.configs:
+        if args.algos != ALGOS:
+            parser.error("--configs names the algorithms: --algos does not combine with it")
+        try:
+            configs = read_configs(args.configs)
+        except (OSError, HyperparamsError) as error:
+            parser.error(f"--configs: {error}")
+        unknown = sorted(set(configs) - set(ALGOS))
+        if unknown:
+            parser.error(f"--configs: {', '.join(unknown)} not among the algorithms {', '.join(ALGOS)}")
+        args.algos = list(configs)
+    budgets = {algo: configs[algo].pop("n_timesteps", None) for algo in args.algos}
+    stem = f"_{Path(args.configs).stem}" if args.configs else ""
+    robot = "" if args.robot == "kinematic" else f"_{args.robot}"
+    name = args.env.split("/")[-1] + robot + stem + ("_quick" if args.quick else "")
+    seeds, n_layouts, reps = SEEDS, len(range(*TEST_LAYOUT_SEEDS)), args.reps
     courses = sorted(path.stem for path in COURSES_DIR.glob("*.yml"))
     trajectory_layouts = args.trajectory_layouts
     if args.quick:
-        seeds, n_timesteps, n_layouts, courses, reps = seeds[:2], 600, 3, courses[:1], 200
+        seeds, n_layouts, courses, reps = seeds[:2], 3, courses[:1], 200
+        budgets = dict.fromkeys(args.algos, 600)
     trajectory_layouts = min(trajectory_layouts, n_layouts)
     folder = RUNS_DIR / name
     output = RESULTS_DIR / name
@@ -286,8 +331,8 @@ def main() -> None:
             env_ids=[args.env],
             seeds=seeds,
             log_folder=str(folder / algo),
-            n_timesteps=n_timesteps,
-            overrides=robot_overrides(algo, args.env, args.robot),
+            n_timesteps=budgets[algo],
+            overrides=robot_overrides(algo, args.env, args.robot, configs[algo]),
             eval_episodes=5,
             final_eval_episodes=20,
             device="cpu",
@@ -345,8 +390,14 @@ def main() -> None:
         "robot": args.robot,
         "algos": args.algos,
         "seeds": seeds,
-        "n_timesteps": n_timesteps or "each entry's n_timesteps",
-        "hyperparams": "shipped (hyperparams/{algo}.yml)",
+        "n_timesteps": (
+            {algo: budget or "the entry's n_timesteps" for algo, budget in budgets.items()}
+            if args.configs or args.quick
+            else "each entry's n_timesteps"
+        ),
+        "hyperparams": "shipped (hyperparams/{algo}.yml)"
+        + (f" with the overrides of {os.path.relpath(Path(args.configs).resolve(), ROOT.parent)}" if args.configs else ""),
+        **({"configs": configs} if args.configs else {}),
         "held_out_layouts": [TEST_LAYOUT_SEEDS[0], TEST_LAYOUT_SEEDS[0] + n_layouts - 1],
         "trajectory_layouts": trajectory_layouts,
         "courses": courses,

@@ -91,3 +91,45 @@ def test_committed_reference_planner_was_chosen_on_validation_and_rebuilds(monke
     assert (RESULTS / "reference_planner.md").read_text() == reference_planner.markdown(scores)
     for name in ("reference_planner", "procedural_generalisation"):
         sys.modules.pop(name, None)
+
+
+@pytest.mark.parametrize(
+    ("text", "extra", "message"),
+    [
+        ("dqn: {gamma: 0.98}\n", [], "dqn not among the algorithms"),
+        ("adc: 3\n", [], "mapping of key: value overrides"),
+        ("adc: {gamma: 0.98}\n", ["--algos", "adc"], "--algos does not combine"),
+    ],
+)
+def test_configs_file_is_checked_before_anything_runs(tmp_path, monkeypatch, capsys, text, extra, message):
+    import importlib
+    import sys
+
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    procedural_generalisation = importlib.import_module("procedural_generalisation")
+    monkeypatch.setattr(procedural_generalisation, "RUNS_DIR", tmp_path / "runs")
+    monkeypatch.setattr(procedural_generalisation, "RESULTS_DIR", tmp_path / "results")
+    path = tmp_path / "configs.yml"
+    path.write_text(text)
+    monkeypatch.setattr(sys, "argv", ["procedural_generalisation.py", "--configs", str(path), *extra])
+    with pytest.raises(SystemExit) as exit_info:
+        procedural_generalisation.main()
+    assert exit_info.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "runs").exists()
+    assert not (tmp_path / "results").exists()
+    sys.modules.pop("procedural_generalisation", None)
+
+
+def test_committed_results_of_a_configs_file_ran_its_configurations():
+    from sb3_adc.config.loader import read_yaml_file
+
+    for folder in FOLDERS:
+        metadata = json.loads((folder / "metadata.json").read_text())
+        if "configs" not in metadata:
+            continue
+        configs = read_yaml_file(str(ROOT / metadata["hyperparams"].rsplit(" ", 1)[-1]))
+        budgets = {algo: overrides.pop("n_timesteps", "the entry's n_timesteps") for algo, overrides in configs.items()}
+        assert metadata["configs"] == configs
+        assert metadata["n_timesteps"] == budgets
+        assert metadata["algos"] == list(configs)
