@@ -194,6 +194,15 @@ class TuneSettings:
                     "command line", f"--search-space {key}", "is not searched: every trial has the same budget and policy"
                 )
 
+    def evaluation_env_kwargs(self, entry_env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
+        """
+        The ``gym.make`` keywords of the evaluations (periodic and final): the entry's, then :attr:`env_kwargs`, then
+        :attr:`eval_env_kwargs`.
+
+        :param entry_env_kwargs: The ``env_kwargs`` of the trial's entry
+        """
+        return {**entry_env_kwargs, **self.env_kwargs, **self.eval_env_kwargs}
+
     @property
     def name(self) -> str:
         """The study's name."""
@@ -239,7 +248,7 @@ def tune(settings: TuneSettings) -> TuneResult:
     # Resolve the starting entry once: invalid hyperparameters stop here, before a folder is made.
     config = load_hyperparams(settings.algo, settings.env_id, settings.conf_file, settings.overrides, settings.n_timesteps)
     check_search_space(settings)
-    evaluation_kwargs = {**config.env_kwargs, **settings.env_kwargs, **settings.eval_env_kwargs}
+    evaluation_kwargs = settings.evaluation_env_kwargs(config.env_kwargs)
     if settings.eval_env_kwargs:
         check_env_kwargs(settings.env_id, evaluation_kwargs, "eval_env_kwargs")
     if settings.objective == "success":
@@ -438,7 +447,7 @@ class TrialEvalCallback(EvalCallback):
 
     def __init__(self, trial: optuna.Trial, settings: TuneSettings, hyperparams_file: str, seed: int, step_offset: int):
         config = load_hyperparams(settings.algo, settings.env_id, hyperparams_file, n_timesteps=settings.n_timesteps)
-        config.env_kwargs.update({**settings.env_kwargs, **settings.eval_env_kwargs})
+        config.env_kwargs = settings.evaluation_env_kwargs(config.env_kwargs)
         eval_env = wrap_vec_env(config, make_run_envs(config, 1, seed + EVAL_SEED_OFFSET), training=False)
         super().__init__(
             eval_env,
