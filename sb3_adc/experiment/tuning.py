@@ -303,7 +303,7 @@ def _objective(trial: optuna.Trial, settings: TuneSettings, base: dict[str, Any]
     params = {}
     if not shipped:
         params = sample(settings.algo, Space(trial, {**base, **settings.overrides}, settings.overrides, settings.search_space))
-    entry = trial_entry(base, params, settings.overrides)
+    entry = trial_entry(base, params, settings.overrides, settings.n_timesteps)
     trial_dir = os.path.join(settings.study_dir, f"trial_{trial.number}")
     os.makedirs(trial_dir, exist_ok=True)
     hyperparams_file = os.path.join(trial_dir, "hyperparams.yml")
@@ -416,15 +416,21 @@ def check_search_space(settings: TuneSettings) -> None:
                 raise HyperparamsError("command line", f"--search-space {key}", f"choice {choice!r}: {error}") from None
 
 
-def trial_entry(base: Mapping[str, Any], params: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+def trial_entry(
+    base: Mapping[str, Any], params: Mapping[str, Any], overrides: Mapping[str, Any], n_timesteps: int | None = None
+) -> dict[str, Any]:
     """
     The hyperparameter entry of a trial: the starting entry, the sampled values, then the fixed overrides.
 
     :param base: The starting entry
     :param params: The sampled values
     :param overrides: Values fixed in every trial (``-params``)
+    :param n_timesteps: The study's training budget (``None``: the entry's), written into the entry so that the
+        trial's file, and the best one, train with ``-conf`` for as long as the trial did
     """
     entry = {**base, **params, **overrides}
+    if n_timesteps is not None:
+        entry["n_timesteps"] = n_timesteps
     if entry.get("noise_type") != "epsilon-normal":
         for key in _EPSILON_KEYS:
             entry.pop(key, None)

@@ -45,6 +45,16 @@ def test_two_trials_shipped_first_best_file_loads(cli, train_args, tmp_path):
     assert "Best:" in out
 
 
+def test_budget_is_written_into_the_trial_and_best_files(cli, train_args, tmp_path):
+    """A study's ``-n`` (here 200, the entry says 300) is what its files train for with ``-conf``."""
+    status, _, err = cli(*tune_args(train_args, "ddpg", tmp_path, "--n-trials", 2, "-n", 200))
+    assert status == 0, err
+    study_dir = tmp_path / "tuning" / "ddpg-Pendulum-v1"
+    for path in (study_dir / "trial_0" / "hyperparams.yml", study_dir / "trial_1" / "hyperparams.yml"):
+        assert yaml.safe_load(path.read_text())["Pendulum-v1"]["n_timesteps"] == 200
+    assert load_hyperparams("ddpg", "Pendulum-v1", str(study_dir / "best_hyperparams.yml")).n_timesteps == 200
+
+
 def test_rerun_continues_the_study_to_the_new_budget(cli, train_args, tmp_path):
     assert cli(*tune_args(train_args, "ddpg", tmp_path, "--n-trials", 2))[0] == 0
     status, out, _ = cli(*tune_args(train_args, "ddpg", tmp_path, "--n-trials", 3))
