@@ -19,10 +19,11 @@ fresh seeds) and ``summary.md``.
 trial's value is the success rate on the validation layouts (``VALIDATION_LAYOUT_SEEDS``, which neither training
 nor the held-out test set uses), so the test layouts, the course files and the reporting seeds stay unseen. Every
 algorithm gets the discount and clearance shaping that the budget sweeps found (``LIDAR_FIXED``, outside the
-search), its own space, and the choices of ``LIDAR_SEARCH_SPACE``: the replay buffer for all, and for ADC, whose
-critic TD3's additions do not come with, the twin critics, target smoothing and delayed actor updates (TD3 has
-them built in; DDPG's identity is to have none). Its files go to ``benchmarks/runs/fair_tuning_lidar/`` and
-``benchmarks/results/fair_tuning_lidar/``.
+search), starts from its shipped entry with what the sweeps found (``configs/lidar_start/``: the buffer for all,
+for ADC also TD3's additions and a lower actor rate), and searches its own space with the choices of
+``LIDAR_SEARCH_SPACE``: the replay buffer for all, and for ADC, whose critic TD3's additions do not come with, the
+twin critics, target smoothing and delayed actor updates (TD3 has them built in; DDPG's identity is to have none).
+Its files go to ``benchmarks/runs/fair_tuning_lidar/`` and ``benchmarks/results/fair_tuning_lidar/``.
 
 Usage::
 
@@ -66,6 +67,10 @@ STARTING_POINTS = {
 }
 
 LIDAR_ENV_ID = "sb3_adc/LidarObstacleCourse-v1"
+#: Algorithm -> the starting entry of the lidar study (``configs/lidar_start``): the shipped ``-v1`` entry with what
+#: the budget sweeps found for every learner (150,000 steps, the fixed settings below, a buffer that keeps the run),
+#: and for ADC also its best updates there (TD3's additions, an actor learning rate of 3e-4).
+LIDAR_STARTING_POINTS = {algo: str(ROOT / "configs" / "lidar_start" / f"{algo}.yml") for algo in ALGOS}
 #: Fixed for every algorithm of the lidar study: the discount and the potential-based clearance shaping (at the
 #: same discount) that raised both ADC and TD3 in the budget sweeps (docs/results/critic_study.rst).
 LIDAR_FIXED: dict[str, Any] = {
@@ -112,7 +117,7 @@ STUDIES = {
         "success",
         50,
         20,
-        {},
+        LIDAR_STARTING_POINTS,
         LIDAR_FIXED,
         LIDAR_SEARCH_SPACE,
         {"layout_seeds": list(VALIDATION_LAYOUT_SEEDS)},

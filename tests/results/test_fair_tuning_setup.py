@@ -1,0 +1,53 @@
+"""The lidar study of ``benchmarks/fair_tuning.py`` starts every algorithm from its shipped entry changed the same
+way: each starting file differs from the shipped ``-v1`` entry only in the settings the budget sweeps found for
+every learner (and, for ADC, in the update settings they found for it), so no baseline starts handicapped."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from pathlib import Path
+
+import pytest
+
+from sb3_adc.config.loader import packaged_hyperparams_file, read_hyperparams_file, select_entry
+
+ROOT = Path(__file__).resolve().parents[2]
+#: What every starting entry changes, with the values the budget sweeps found.
+COMMON = {
+    "n_timesteps": 150_000,
+    "gamma": 0.98,
+    "buffer_size": 200_000,
+    "env_wrapper": [{"sb3_adc_envs.wrappers.ClearanceShaping": {"gamma": 0.98}}],
+}
+#: ADC's own changes: TD3's additions and the lower actor rate.
+ADC_ONLY = {"learning_rate", "policy_delay", "target_policy_noise", "target_noise_clip", "policy_kwargs"}
+
+
+@pytest.fixture(scope="module")
+def fair_tuning():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    yield importlib.import_module("fair_tuning")
+    sys.path.remove(str(ROOT / "benchmarks"))
+
+
+@pytest.mark.parametrize("algo", ["adc", "ddpg", "td3", "sac"])
+def test_starting_entry_is_the_shipped_one_changed_alike(fair_tuning, algo):
+    study = fair_tuning.STUDIES["lidar"]
+    env_id = study.env_id
+    path = study.starting_points[algo]
+    start, _ = select_entry(read_hyperparams_file(path), env_id, path)
+    shipped_path = packaged_hyperparams_file(algo)
+    shipped, _ = select_entry(read_hyperparams_file(shipped_path), env_id, shipped_path)
+    for key, value in COMMON.items():
+        assert start[key] == value, key
+    # The fixed settings of the study agree with the starting entries.
+    for key, value in study.fixed.items():
+        assert start[key] == value, key
+    allowed = set(COMMON) | (ADC_ONLY if algo == "adc" else set())
+    changed = {key for key in set(start) | set(shipped) if start.get(key) != shipped.get(key)}
+    assert changed <= allowed, changed - allowed
+    if algo == "adc":
+        assert start["policy_delay"] == 2
+        assert start["target_policy_noise"] == 0.2
+        assert "n_critics=2" in start["policy_kwargs"]
