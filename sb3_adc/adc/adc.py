@@ -11,7 +11,7 @@ from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.save_util import load_from_zip_file
-from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, PyTorchObs, Schedule, TensorDict
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, PyTorchObs, Schedule
 from stable_baselines3.common.utils import polyak_update
 from torch.nn import functional as F
 
@@ -24,7 +24,7 @@ from sb3_adc.adc.policies import (
     MultiInputPolicy,
 )
 from sb3_adc.common.critic_learning_rate import TD3WithCriticLearningRate
-from sb3_adc.common.model_files import check_parameter_shapes, model_file_error, model_file_errors
+from sb3_adc.common.model_files import CheckedModelFiles, model_file_error, model_file_errors
 from sb3_adc.common.schedules import ScaledSchedule
 from sb3_adc.common.spaces import ActionSpaceError, check_action_space
 
@@ -34,7 +34,7 @@ SelfADC = TypeVar("SelfADC", bound="ADC")
 PAPER_CRITIC_LR_FACTOR = 2.0
 
 
-class ADC(TD3WithCriticLearningRate):
+class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
     """
     Actor-Dueling-Critic (ADC).
 
@@ -282,32 +282,14 @@ class ADC(TD3WithCriticLearningRate):
         # The last training batch is kept for the logged diagnostics only; the parameter lists are the policy's.
         return [*super()._excluded_save_params(), "_last_batch", "_actor_parameters", "_target_updates"]
 
-    def set_parameters(
-        self,
-        load_path_or_dict: str | TensorDict,
-        exact_match: bool = True,
-        device: th.device | str = "auto",
-    ) -> None:
+    def _check_saved_parameters(self, params: dict[str, Any]) -> None:
         """
-        Load parameters from a zip file or a dictionary of state dicts (see SB3's ``set_parameters``), after
-        checking that they were made by an ADC model with this model's ``n_intervals`` and tensor shapes (the
-        same spaces and network sizes). Errors are :class:`~sb3_adc.common.model_files.ModelFileError`, a
-        ``ValueError`` that is also the type SB3 raises (a ``RuntimeError`` for tensors of another shape).
+        Check that the parameters were made by an ADC model with this model's ``n_intervals`` (their tensor
+        shapes are checked next, by :meth:`~sb3_adc.common.model_files.CheckedModelFiles.set_parameters`).
 
-        :param load_path_or_dict: Location of the saved data, or a dictionary of state dicts
-        :param exact_match: If True, the given parameters must include every parameter of every module
-        :param device: Device on which the code should run.
+        :param params: Module name to state dict
+        :raises ModelFileError: for a critic of another algorithm or another ``n_intervals``
         """
-        if isinstance(load_path_or_dict, dict):
-            params = load_path_or_dict
-        else:
-            with model_file_errors(load_path_or_dict, "ADC"):
-                _, params, _ = load_from_zip_file(load_path_or_dict, device=device, load_data=False)
-        self._check_interval_count(params)
-        check_parameter_shapes(self, params)
-        super().set_parameters(params, exact_match=exact_match, device=device)
-
-    def _check_interval_count(self, params: dict[str, Any]) -> None:
         policy_state = params.get("policy")
         if not isinstance(policy_state, dict):
             return
@@ -363,7 +345,7 @@ class ADC(TD3WithCriticLearningRate):
             except ActionSpaceError as error:
                 # SB3's load reports the env's mismatched space as a ValueError: be one too, and name the file.
                 raise model_file_error(f"Cannot load the ADC model {path!s} for this env: {error}", type(error)) from error
-        with model_file_errors(path, "ADC"):
+        with model_file_errors(path, cls.__name__):
             custom_objects = _design_of_files_without_one(path, custom_objects)
             given = kwargs.get("policy_kwargs")
             if isinstance(given, dict) and "critic_design" not in given:

@@ -2,26 +2,21 @@
 
 from __future__ import annotations
 
-import io
-import pathlib
-from typing import Any, TypeVar
+from typing import Any
 
 import torch as th
 from stable_baselines3 import DDPG
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
-from stable_baselines3.common.save_util import load_from_zip_file
-from stable_baselines3.common.type_aliases import GymEnv, Schedule, TensorDict
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from stable_baselines3.td3.policies import TD3Policy
 
 from sb3_adc.adc.policies import ADCPolicy
 from sb3_adc.common.critic_learning_rate import TD3WithCriticLearningRate
-from sb3_adc.common.model_files import check_parameter_shapes, model_file_errors
-
-SelfSplitRateDDPG = TypeVar("SelfSplitRateDDPG", bound="SplitRateDDPG")
+from sb3_adc.common.model_files import CheckedModelFiles
 
 
-class SplitRateDDPG(TD3WithCriticLearningRate, DDPG):
+class SplitRateDDPG(CheckedModelFiles, TD3WithCriticLearningRate, DDPG):
     """
     Deep Deterministic Policy Gradient with separate actor and critic learning rates.
 
@@ -118,63 +113,3 @@ class SplitRateDDPG(TD3WithCriticLearningRate, DDPG):
                 "(Loading a model file saved by ADC? Load it with sb3_adc.ADC.load.)"
             )
         super()._setup_model()
-
-    def set_parameters(
-        self,
-        load_path_or_dict: str | TensorDict,
-        exact_match: bool = True,
-        device: th.device | str = "auto",
-    ) -> None:
-        """
-        Load parameters from a zip file or a dictionary of state dicts (see SB3's ``set_parameters``), after
-        checking that their tensors have this model's shapes (the same spaces and network sizes). Errors are
-        :class:`~sb3_adc.common.model_files.ModelFileError`, a ``ValueError`` that is also the type SB3 raises (a
-        ``RuntimeError`` for tensors of another shape, where SB3 lets torch's size mismatch through).
-
-        :param load_path_or_dict: Location of the saved data, or a dictionary of state dicts
-        :param exact_match: If True, the given parameters must include every parameter of every module
-        :param device: Device on which the code should run.
-        """
-        if isinstance(load_path_or_dict, dict):
-            params = load_path_or_dict
-        else:
-            with model_file_errors(load_path_or_dict, type(self).__name__):
-                _, params, _ = load_from_zip_file(load_path_or_dict, device=device, load_data=False)
-        check_parameter_shapes(self, params)
-        super().set_parameters(params, exact_match=exact_match, device=device)
-
-    @classmethod
-    def load(
-        cls: type[SelfSplitRateDDPG],
-        path: str | pathlib.Path | io.BufferedIOBase,
-        env: GymEnv | None = None,
-        device: th.device | str = "auto",
-        custom_objects: dict[str, Any] | None = None,
-        print_system_info: bool = False,
-        force_reset: bool = True,
-        **kwargs: Any,
-    ) -> SelfSplitRateDDPG:
-        """
-        Load a model from a zip file (see SB3's ``BaseAlgorithm.load``), with errors that name the file:
-        :class:`~sb3_adc.common.model_files.ModelFileError` (a ``ValueError`` that is also the type SB3 raises),
-        among them a ``TypeError`` for a file saved by ADC; ``FileNotFoundError`` naming ``path``.
-
-        :param path: path to the file (or a file-like) where to load the agent from
-        :param env: the new environment to run the loaded model on (can be None if you only need prediction)
-        :param device: Device on which the code should run.
-        :param custom_objects: Dictionary of objects to replace upon loading
-        :param print_system_info: Whether to print system info from the saved model
-        :param force_reset: Force call to ``reset()`` before training to avoid unexpected behavior
-        :param kwargs: extra arguments to change the model when loading
-        :return: new model instance with loaded parameters
-        """
-        with model_file_errors(path, cls.__name__):
-            return super().load(
-                path,
-                env=env,
-                device=device,
-                custom_objects=custom_objects,
-                print_system_info=print_system_info,
-                force_reset=force_reset,
-                **kwargs,
-            )

@@ -19,11 +19,12 @@ import pickle
 import zipfile
 import zlib
 from collections.abc import Iterator, Mapping
-from typing import Any
+from typing import Any, TypeVar
 
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.save_util import recursive_getattr
+from stable_baselines3.common.save_util import load_from_zip_file, recursive_getattr
+from stable_baselines3.common.type_aliases import GymEnv, TensorDict
 
 #: The errors SB3's loader lets through from a damaged or foreign archive: the zip reader's, the unpickler's and
 #: torch's errors on a truncated entry, a missing entry, and SB3's own assertions on the archive's content.
@@ -172,3 +173,81 @@ def check_parameter_shapes(model: BaseAlgorithm, params: Mapping[str, Any]) -> N
             "same spaces and network sizes.",
             RuntimeError,
         )
+
+
+SelfCheckedModelFiles = TypeVar("SelfCheckedModelFiles", bound="CheckedModelFiles")
+
+
+class CheckedModelFiles(BaseAlgorithm):
+    """
+    An SB3 algorithm whose ``load`` and ``set_parameters`` errors name the file: a :class:`ModelFileError` (a
+    ``ValueError`` that is also the type SB3 raises in the same situation), a ``RuntimeError`` one for parameters of
+    other shapes (where SB3 lets torch's size mismatch through), ``FileNotFoundError`` naming the path given.
+    Subclasses add their own checks of the saved parameters in :meth:`_check_saved_parameters`.
+    """
+
+    def _check_saved_parameters(self, params: dict[str, Any]) -> None:
+        """
+        Checks of the saved parameters before their shapes are compared with this model's (none here).
+
+        :param params: Module name to state dict
+        :raises ModelFileError: for parameters this model cannot take
+        """
+
+    def set_parameters(
+        self,
+        load_path_or_dict: str | TensorDict,
+        exact_match: bool = True,
+        device: th.device | str = "auto",
+    ) -> None:
+        """
+        Load parameters from a zip file or a dictionary of state dicts (see SB3's ``set_parameters``), after
+        :meth:`_check_saved_parameters` and a check that their tensors have this model's shapes (the same spaces
+        and network sizes).
+
+        :param load_path_or_dict: Location of the saved data, or a dictionary of state dicts
+        :param exact_match: If True, the given parameters must include every parameter of every module
+        :param device: Device on which the code should run.
+        """
+        if isinstance(load_path_or_dict, dict):
+            params = load_path_or_dict
+        else:
+            with model_file_errors(load_path_or_dict, type(self).__name__):
+                _, params, _ = load_from_zip_file(load_path_or_dict, device=device, load_data=False)
+        self._check_saved_parameters(params)
+        check_parameter_shapes(self, params)
+        super().set_parameters(params, exact_match=exact_match, device=device)
+
+    @classmethod
+    def load(
+        cls: type[SelfCheckedModelFiles],
+        path: str | pathlib.Path | io.BufferedIOBase,
+        env: GymEnv | None = None,
+        device: th.device | str = "auto",
+        custom_objects: dict[str, Any] | None = None,
+        print_system_info: bool = False,
+        force_reset: bool = True,
+        **kwargs: Any,
+    ) -> SelfCheckedModelFiles:
+        """
+        Load a model from a zip file (see SB3's ``BaseAlgorithm.load``), with errors that name the file.
+
+        :param path: path to the file (or a file-like) where to load the agent from
+        :param env: the new environment to run the loaded model on (can be None if you only need prediction)
+        :param device: Device on which the code should run.
+        :param custom_objects: Dictionary of objects to replace upon loading
+        :param print_system_info: Whether to print system info from the saved model
+        :param force_reset: Force call to ``reset()`` before training to avoid unexpected behavior
+        :param kwargs: extra arguments to change the model when loading
+        :return: new model instance with loaded parameters
+        """
+        with model_file_errors(path, cls.__name__):
+            return super().load(
+                path,
+                env=env,
+                device=device,
+                custom_objects=custom_objects,
+                print_system_info=print_system_info,
+                force_reset=force_reset,
+                **kwargs,
+            )
