@@ -26,3 +26,20 @@ def test_ci_runs_the_readme_test_command():
     _, tests = setup_commands()
     ci_lines = (ROOT / ".ci" / "run").read_text().splitlines()
     assert tests.strip() in [line.strip() for line in ci_lines]
+
+
+def held_out_iqm(folder: str) -> dict[str, str]:
+    """Algorithm -> held-out success IQM, as the committed ``success_rates.md`` of a procedural grid prints it."""
+    table = (ROOT / "benchmarks" / "results" / "procedural_generalisation" / folder / "success_rates.md").read_text()
+    rows = re.findall(r"^\| held-out layouts \| (\w+) \| \d+ \| ([\d.]+) \[", table, flags=re.MULTILINE)
+    return dict(rows)
+
+
+def test_readme_procedural_figures_are_the_committed_ones():
+    """The held-out success rates the README quotes are those of the committed grids it names."""
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    shipped = held_out_iqm("LidarObstacleCourse-v1")
+    quoted = ", ".join(f"{shipped[algo]} for {algo.upper()}" for algo in ("adc", "ddpg", "sac"))
+    assert f"is {quoted} and {shipped['td3']} for TD3" in readme
+    tuned = held_out_iqm("LidarObstacleCourse-v1_shaping_150k")
+    assert f"ADC reaches {tuned['adc']} and TD3 {tuned['td3']}" in readme
