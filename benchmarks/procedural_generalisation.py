@@ -16,6 +16,11 @@ of every run on the first ``--trajectory-layouts`` held-out layouts are kept (``
 of algorithm to ``key: value`` overrides, checked as the engine checks ``-params``; ``n_timesteps`` sets the
 budget); its results go to folders named after the file (``{env}_{file stem}``).
 
+``--model best`` scores each run's ``best_model.zip`` instead of its final model: the model of the run's periodic
+evaluation with the best mean return (SB3's ``EvalCallback`` rule, the RL Zoo's ``--load-best``: 20 evaluations of
+5 episodes on training layouts, none of the test sets), the same rule for every algorithm. The runs are the same
+(trained once, found finished); its results go to folders named ``..._best``.
+
 Training is ``sb3-adc benchmark``'s engine (resumable, one process per run, same seeds and evaluation for every
 algorithm); the runs go to ``benchmarks/runs/procedural_generalisation/`` (not committed), the tables to
 ``benchmarks/results/procedural_generalisation/{name}/``, the figures to
@@ -28,6 +33,7 @@ Usage::
     python benchmarks/procedural_generalisation.py --env sb3_adc/LidarObstacleCourseNoisy-v1 --workers 2
     python benchmarks/procedural_generalisation.py --robot wheeled --workers 2   # the robot with dynamics
     python benchmarks/procedural_generalisation.py --configs benchmarks/configs/procedural_generalisation/FILE.yml --workers 2
+    python benchmarks/procedural_generalisation.py --configs benchmarks/configs/procedural_generalisation/FILE.yml --model best
     python benchmarks/procedural_generalisation.py --quick                     # a smoke run
     python benchmarks/procedural_generalisation.py --replot                    # redraw the figures, no training
 """
@@ -52,7 +58,7 @@ import torch as th
 from sb3_adc.config.experiment_config import ExperimentConfig
 from sb3_adc.config.loader import HyperparamsError, load_hyperparams, read_yaml_file
 from sb3_adc.experiment.benchmark import FINAL_CSV, BenchmarkSettings, RunOutcome, RunSpec, run_benchmark
-from sb3_adc.experiment.enjoy import load_model, load_run
+from sb3_adc.experiment.enjoy import load_model, load_run, model_path
 from sb3_adc.experiment.plots import plot_final_performance, plot_trajectories
 from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc.experiment.settings import TrainSettings
@@ -74,6 +80,12 @@ COURSE_JITTER = {"start_position_jitter": 0.1, "start_heading_jitter_deg": 10.0}
 #: Keywords of the training entries that only vary the start during training.
 TRAINING_ONLY = ("start_position_jitter", "start_heading_jitter_deg")
 TRAJECTORIES_CSV = "trajectories.csv.gz"
+#: What ``--model`` scores, as the metadata says it.
+MODELS = {
+    "final": "each run's final model",
+    "best": "each run's best_model.zip: the periodic evaluation (20 per run, 5 episodes on training layouts) with the "
+    "best mean return",
+}
 
 
 def report(outcome: RunOutcome, done: int, total: int, by_folder: bool = False) -> None:
@@ -229,10 +241,15 @@ def score_run(
     course_episodes: int,
     n_layouts: int,
     trajectory_layouts: int,
+    which: str = "final",
 ) -> tuple[list[dict[str, Any]], list[pd.DataFrame]]:
-    """:func:`score_policy` for a finished run's final model, its rows and paths labelled with the run."""
+    """
+    :func:`score_policy` for a finished run's model (``which``: ``final`` or ``best``, see ``--model``), its rows and
+    paths labelled with the run.
+    """
     th.set_num_threads(1)
-    _, config, model, kwargs = load_for_scoring(run_dir)
+    _, _, layout = load_run(run_dir)
+    _, config, model, kwargs = load_for_scoring(run_dir, model_path(layout, which)[0])
     rows, paths = score_policy(model, config.wrap_env, env_id, kwargs, courses, course_episodes, n_layouts, trajectory_layouts)
     run = {"algo": algo, "env": env_id, "seed": seed}
     return [run | row for row in rows], [path.assign(algo=algo, seed=seed)[["algo", "seed", *path.columns]] for path in paths]
@@ -263,12 +280,12 @@ def plot(scores: pd.DataFrame, path: Path, reps: int) -> pd.DataFrame:
     return performance
 
 
-def plot_paths(trajectories: pd.DataFrame, env_id: str, robot: str, path: Path) -> None:
+def plot_paths(trajectories: pd.DataFrame, env_id: str, robot: str, path: Path, which: str = "final") -> None:
     """Every run's path on the held-out layouts of ``trajectories``, one row per algorithm."""
     env_kwargs = {} if robot == "kinematic" else {"robot": robot}
     seeds = sorted({int(name.split()[-1]) for name in trajectories["course"]})
     courses = held_out_courses(env_id, env_kwargs, seeds)
-    title = f"{env_id} ({robot} robot): final models on held-out layouts, one path per run"
+    title = f"{env_id} ({robot} robot): {which} models on held-out layouts, one path per run"
     plot_trajectories(trajectories, courses, str(path), title=title)
 
 
@@ -284,6 +301,9 @@ def main() -> None:
     parser.add_argument("--trajectory-layouts", type=int, default=4, help="held-out layouts whose paths are drawn")
     parser.add_argument("--quick", action="store_true", help="smoke run: 2 seeds, 600 steps, 3 layouts, 1 course")
     parser.add_argument("--replot", action="store_true", help="redraw the figure from the committed success.csv")
+    parser.add_argument(
+        "--model", choices=["final", "best"], default="final", help="which model of each run is scored (default: final)"
+    )
     args = parser.parse_args()
     if min(args.workers, args.course_episodes, args.reps, args.trajectory_layouts) < 1:
         parser.error("--workers, --course-episodes, --reps and --trajectory-layouts must be >= 1")
@@ -303,7 +323,9 @@ def main() -> None:
     budgets = {algo: configs[algo].pop("n_timesteps", None) for algo in args.algos}
     stem = f"_{Path(args.configs).stem}" if args.configs else ""
     robot = "" if args.robot == "kinematic" else f"_{args.robot}"
-    name = args.env.split("/")[-1] + robot + stem + ("_quick" if args.quick else "")
+    grid = args.env.split("/")[-1] + robot + stem
+    quick = "_quick" if args.quick else ""
+    name = grid + ("" if args.model == "final" else f"_{args.model}") + quick
     seeds, n_layouts, reps = SEEDS, len(range(*TEST_LAYOUT_SEEDS)), args.reps
     courses = sorted(path.stem for path in COURSES_DIR.glob("*.yml"))
     trajectory_layouts = args.trajectory_layouts
@@ -311,7 +333,7 @@ def main() -> None:
         seeds, n_layouts, courses, reps = seeds[:2], 3, courses[:1], 200
         budgets = dict.fromkeys(args.algos, 600)
     trajectory_layouts = min(trajectory_layouts, n_layouts)
-    folder = RUNS_DIR / name
+    folder = RUNS_DIR / (grid + quick)  # the same runs whichever model is scored
     output = RESULTS_DIR / name
     if args.replot:
         figure = DOCS_STATIC / f"procedural_generalisation_{name}.png"
@@ -319,7 +341,7 @@ def main() -> None:
         print(f"wrote {figure}")
         if (output / TRAJECTORIES_CSV).exists():
             paths_figure = DOCS_STATIC / f"procedural_trajectories_{name}.png"
-            plot_paths(pd.read_csv(output / TRAJECTORIES_CSV), args.env, args.robot, paths_figure)
+            plot_paths(pd.read_csv(output / TRAJECTORIES_CSV), args.env, args.robot, paths_figure, args.model)
             print(f"wrote {paths_figure}")
         return
     output.mkdir(parents=True, exist_ok=True)
@@ -342,7 +364,9 @@ def main() -> None:
         if result.failures:
             raise SystemExit(f"{len(result.failures)} runs of {algo} failed; re-run to retry them")
         finals.append(pd.read_csv(result.tables[FINAL_CSV]))
-    training_s, training_workers = training_time(output, statuses, time.perf_counter() - start, args.workers)
+    # The training of the grid (recorded beside its final models when `--model best` finds every run finished).
+    elapsed = time.perf_counter() - start
+    training_s, training_workers = training_time(RESULTS_DIR / (grid + quick), statuses, elapsed, args.workers)
     pd.concat(finals, ignore_index=True).to_csv(output / FINAL_CSV, index=False)
     jobs = [
         (
@@ -354,6 +378,7 @@ def main() -> None:
             args.course_episodes,
             n_layouts,
             trajectory_layouts,
+            args.model,
         )
         for algo in args.algos
         for seed in seeds
@@ -367,7 +392,7 @@ def main() -> None:
     trajectories = pd.concat([path for _, paths in scored for path in paths], ignore_index=True)
     trajectories.to_csv(output / TRAJECTORIES_CSV, index=False)
     paths_figure = output / "trajectories.png"
-    plot_paths(trajectories, args.env, args.robot, paths_figure)
+    plot_paths(trajectories, args.env, args.robot, paths_figure, args.model)
     figure = output / "success_rates.png"
     performance = plot(scores, figure, reps)
     performance.rename(columns={"env": "test_set"}).to_csv(output / "success_rates.csv", index=False)
@@ -398,6 +423,7 @@ def main() -> None:
         "hyperparams": "shipped (hyperparams/{algo}.yml)"
         + (f" with the overrides of {os.path.relpath(Path(args.configs).resolve(), ROOT.parent)}" if args.configs else ""),
         **({"configs": configs} if args.configs else {}),
+        "model": MODELS[args.model],
         "held_out_layouts": [TEST_LAYOUT_SEEDS[0], TEST_LAYOUT_SEEDS[0] + n_layouts - 1],
         "trajectory_layouts": trajectory_layouts,
         "courses": courses,

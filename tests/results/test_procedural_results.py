@@ -133,3 +133,24 @@ def test_committed_results_of_a_configs_file_ran_its_configurations():
         assert metadata["configs"] == configs
         assert metadata["n_timesteps"] == budgets
         assert metadata["algos"] == list(configs)
+
+
+BEST_FOLDERS = [folder for folder in FOLDERS if folder.name.endswith("_best")]
+
+
+@pytest.mark.skipif(not BEST_FOLDERS, reason="no committed --model best scores")
+@pytest.mark.parametrize("folder", BEST_FOLDERS, ids=[folder.name for folder in BEST_FOLDERS])
+def test_committed_best_models_are_those_of_the_scored_grid(folder):
+    """``--model best`` scores other models of the same runs: same algorithms, seeds, settings and training."""
+    grid = folder.with_name(folder.name.removesuffix("_best"))
+    best, final = (json.loads((path / "metadata.json").read_text()) for path in (folder, grid))
+    assert best["model"].startswith("each run's best_model.zip")
+    assert final.get("model", "each run's final model") == "each run's final model"
+    for key in ("env", "robot", "algos", "seeds", "n_timesteps", "hyperparams", "configs", "training_wall_time_s"):
+        assert best.get(key) == final.get(key), key
+    # The runs' final evaluations (written by training) are the grid's.
+    pd.testing.assert_frame_equal(pd.read_csv(folder / "final.csv"), pd.read_csv(grid / "final.csv"))
+    scores = pd.read_csv(folder / "success.csv")
+    assert set(scores[["algo", "seed"]].itertuples(index=False, name=None)) == set(
+        pd.read_csv(grid / "success.csv")[["algo", "seed"]].itertuples(index=False, name=None)
+    )
