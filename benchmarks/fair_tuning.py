@@ -125,6 +125,12 @@ STUDIES = {
 }
 
 
+def starting_point(study: Study, algo: str) -> str:
+    """The starting entry of ``algo`` in ``study``, as the metadata names it: a file of the repository or the shipped one."""
+    path = study.starting_points.get(algo)
+    return str(Path(path).relative_to(ROOT.parent)) if path else f"hyperparams/{algo}.yml (shipped)"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--study", choices=list(STUDIES), default="pendulum", help="which tuning (default: pendulum)")
@@ -206,7 +212,10 @@ def main() -> None:
             "objective": f"mean over the seeds of the final evaluation's {study.objective} "
             f"({study.final_eval_episodes} deterministic episodes)",
             "fixed": study.fixed,
-            "search_space": {algo: study.search_space.get(algo, {}) for algo in args.algos},
+            # Per algorithm, merged with those of earlier invocations (``--algos`` may tune some algorithms at a time).
+            "starting_points": metadata.get("starting_points", {})
+            | {algo: starting_point(study, algo) for algo in args.algos},
+            "search_space": metadata.get("search_space", {}) | {algo: study.search_space.get(algo, {}) for algo in args.algos},
             "eval_env_kwargs": study.eval_env_kwargs,
             "workers": args.workers,
             **machine_metadata(),
