@@ -152,7 +152,6 @@ def main() -> None:
     (output / "hyperparams").mkdir(parents=True, exist_ok=True)
     metadata_path = output / "metadata.json"
     metadata = json.loads(metadata_path.read_text()) if metadata_path.is_file() else {"wall_time_s": {}}
-    rows = []
     for algo in args.algos:
         settings = TuneSettings(
             algo=algo,
@@ -185,12 +184,44 @@ def main() -> None:
         (output / algo).mkdir(exist_ok=True)
         shutil.copyfile(Path(result.study_dir) / "trials.csv", output / algo / "trials.csv")
         shutil.copyfile(result.best_hyperparams_file, output / "hyperparams" / f"{algo}.yml")
-        rows.append((algo, result))
+        # Written after every algorithm, so that a long invocation stopped later keeps what it finished.
+        summary, trial_time = summarise(output, study)
+        metadata.update(
+            {
+                "env": study.env_id,
+                "seeds": list(SEEDS),
+                "n_trials": n_trials,
+                "n_timesteps": n_timesteps,
+                "sampler": "tpe (3 random startup trials, seed 0 + worker)",
+                "pruner": f"median (3 startup trials, 5 evaluations of {study.eval_episodes} episodes per run)",
+                "objective": f"mean over the seeds of the final evaluation's {study.objective} "
+                f"({study.final_eval_episodes} deterministic episodes)",
+                "fixed": study.fixed,
+                # Per algorithm, merged with those of earlier invocations (``--algos`` tunes some algorithms at a time).
+                "starting_points": metadata.get("starting_points", {}) | {algo: starting_point(study, algo)},
+                "search_space": metadata.get("search_space", {}) | {algo: study.search_space.get(algo, {})},
+                "trial_time_s": trial_time,
+                "eval_env_kwargs": study.eval_env_kwargs,
+                "workers": args.workers,
+                **machine_metadata(),
+            }
+        )
+        metadata_path.write_text(json.dumps(metadata, indent=2) + "\n")
+        print("\n".join(summary))
+
+
+def summarise(output: Path, study: Study) -> tuple[list[str], dict[str, float]]:
+    """
+    Write ``summary.md`` for every algorithm with a ``trials.csv`` in ``output``; return its lines and, per
+    algorithm, the summed duration of its finished trials in seconds (the study's compute, whatever the
+    invocations and interruptions).
+    """
     quantity = "return" if study.objective == "return" else "success rate on validation layouts"
     summary = [
         f"| algorithm | finished trials | best trial | best mean final {quantity} (seeds 0, 1) |",
         "|---|---:|---|---:|",
     ]
+    trial_time = {}
     for algo in ALGOS:
         trials_csv = output / algo / "trials.csv"
         if not trials_csv.is_file():
@@ -203,29 +234,9 @@ def main() -> None:
         label = "shipped entry" if best["shipped"] == "True" else f"trial {best['number']}"
         value = f"{float(best['value']):.1f}" if study.objective == "return" else f"{float(best['value']):.2f}"
         summary.append(f"| {algo} | {len(finished)} | {label} | {value} |")
+        trial_time[algo] = round(sum(float(row["duration_s"] or 0.0) for row in finished), 1)
     (output / "summary.md").write_text("\n".join(summary) + "\n")
-    metadata.update(
-        {
-            "env": study.env_id,
-            "seeds": list(SEEDS),
-            "n_trials": n_trials,
-            "n_timesteps": n_timesteps,
-            "sampler": "tpe (3 random startup trials, seed 0 + worker)",
-            "pruner": f"median (3 startup trials, 5 evaluations of {study.eval_episodes} episodes per run)",
-            "objective": f"mean over the seeds of the final evaluation's {study.objective} "
-            f"({study.final_eval_episodes} deterministic episodes)",
-            "fixed": study.fixed,
-            # Per algorithm, merged with those of earlier invocations (``--algos`` may tune some algorithms at a time).
-            "starting_points": metadata.get("starting_points", {})
-            | {algo: starting_point(study, algo) for algo in args.algos},
-            "search_space": metadata.get("search_space", {}) | {algo: study.search_space.get(algo, {}) for algo in args.algos},
-            "eval_env_kwargs": study.eval_env_kwargs,
-            "workers": args.workers,
-            **machine_metadata(),
-        }
-    )
-    metadata_path.write_text(json.dumps(metadata, indent=2) + "\n")
-    print("\n".join(summary))
+    return summary, trial_time
 
 
 if __name__ == "__main__":
