@@ -180,7 +180,8 @@ def main() -> None:
         elapsed = time.perf_counter() - start
         if result.n_finished > n_trials:
             raise SystemExit(f"the {algo} study holds {result.n_finished} trials, more than the budget {n_trials}")
-        metadata["wall_time_s"][algo] = round(metadata["wall_time_s"].get(algo, 0.0) + elapsed, 1)
+        if result.n_finished > finished_before(output / algo / "trials.csv"):  # an invocation that only reports adds none
+            metadata["wall_time_s"][algo] = round(metadata["wall_time_s"].get(algo, 0.0) + elapsed, 1)
         (output / algo).mkdir(exist_ok=True)
         shutil.copyfile(Path(result.study_dir) / "trials.csv", output / algo / "trials.csv")
         shutil.copyfile(result.best_hyperparams_file, output / "hyperparams" / f"{algo}.yml")
@@ -208,6 +209,14 @@ def main() -> None:
         )
         metadata_path.write_text(json.dumps(metadata, indent=2) + "\n")
         print("\n".join(summary))
+
+
+def finished_before(trials_csv: Path) -> int:
+    """How many finished trials the copy of a study's ``trials.csv`` in the results holds (0 without one)."""
+    if not trials_csv.is_file():
+        return 0
+    with open(trials_csv, encoding="utf-8") as stream:
+        return sum(row["state"] in ("COMPLETE", "PRUNED") for row in csv.DictReader(stream))
 
 
 def summarise(output: Path, study: Study) -> tuple[list[str], dict[str, float]]:
