@@ -240,7 +240,7 @@ def summarise(output: Path, study: Study) -> tuple[list[str], dict[str, float]]:
         finished = [row for row in trials if row["state"] in ("COMPLETE", "PRUNED")]
         complete = [row for row in trials if row["state"] == "COMPLETE"]
         best = max(complete, key=lambda row: float(row["value"]))
-        label = "shipped entry" if best["shipped"] == "True" else f"trial {best['number']}"
+        label = "starting entry" if best["shipped"] == "True" else f"trial {best['number']}"
         value = f"{float(best['value']):.1f}" if study.objective == "return" else f"{float(best['value']):.2f}"
         summary.append(f"| {algo} | {len(finished)} | {label} | {value} |")
         trial_time[algo] = round(sum(float(row["duration_s"] or 0.0) for row in finished), 1)
