@@ -24,7 +24,7 @@ from sb3_adc.adc.policies import (
     MultiInputPolicy,
 )
 from sb3_adc.common.critic_learning_rate import TD3WithCriticLearningRate
-from sb3_adc.common.model_files import CheckedModelFiles, model_file_error, model_file_errors
+from sb3_adc.common.model_files import CheckedModelFiles, model_file_error
 from sb3_adc.common.schedules import ScaledSchedule
 from sb3_adc.common.spaces import ActionSpaceError, check_action_space
 
@@ -309,35 +309,23 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
             )
 
     @classmethod
-    def load(
-        cls: type[SelfADC],
+    def _load_arguments(
+        cls,
         path: str | pathlib.Path | io.BufferedIOBase,
-        env: GymEnv | None = None,
-        device: th.device | str = "auto",
-        custom_objects: dict[str, Any] | None = None,
-        print_system_info: bool = False,
-        force_reset: bool = True,
-        **kwargs: Any,
-    ) -> SelfADC:
+        env: GymEnv | None,
+        custom_objects: dict[str, Any] | None,
+        kwargs: dict[str, Any],
+    ) -> tuple[dict[str, Any] | None, dict[str, Any]]:
         """
-        Load an ADC model from a zip file (see SB3's ``BaseAlgorithm.load``).
+        What :meth:`load` (:meth:`~sb3_adc.common.model_files.CheckedModelFiles.load`, whose errors name the file)
+        passes to SB3's: an ``env`` whose action space ADC cannot act in raises a ``ModelFileError`` that is also an
+        :class:`~sb3_adc.common.spaces.ActionSpaceError`; a file saved before ``critic_design`` existed loads with
+        the paper's critic; given ``policy_kwargs`` without a critic design mean the file's.
 
-        Errors name the file. A file that is not an SB3 model archive, is damaged, was saved by another
-        algorithm, or whose action or observation space, or ``n_intervals``, does not match ``env`` or the given
-        policy options raises :class:`~sb3_adc.common.model_files.ModelFileError`: a ``ValueError`` that is also
-        the type SB3 raises in the same situation (``KeyError``, ``EOFError``, ``RuntimeError``, ``TypeError``...).
-        A missing file raises ``FileNotFoundError`` naming ``path``; an ``env`` whose action space ADC cannot act
-        in raises a ``ModelFileError`` that is also an :class:`~sb3_adc.common.spaces.ActionSpaceError`.
-
-        :param path: path to the file (or a file-like) where to load the agent from
-        :param env: the new environment to run the loaded model on (can be None if you only need prediction
-            from a trained model); its spaces must match the saved ones
-        :param device: Device on which the code should run.
-        :param custom_objects: Dictionary of objects to replace upon loading
-        :param print_system_info: Whether to print system info from the saved model
-        :param force_reset: Force call to ``reset()`` before training to avoid unexpected behavior
-        :param kwargs: extra arguments to change the model when loading
-        :return: new model instance with loaded parameters
+        :param path: The file given to :meth:`load`
+        :param env: The environment given to :meth:`load`; its spaces must match the saved ones
+        :param custom_objects: The caller's ``custom_objects``
+        :param kwargs: The caller's extra keyword arguments
         """
         if env is not None:
             try:
@@ -345,23 +333,14 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
             except ActionSpaceError as error:
                 # SB3's load reports the env's mismatched space as a ValueError: be one too, and name the file.
                 raise model_file_error(f"Cannot load the ADC model {path!s} for this env: {error}", type(error)) from error
-        with model_file_errors(path, cls.__name__):
-            custom_objects = _design_of_files_without_one(path, custom_objects)
-            given = kwargs.get("policy_kwargs")
-            if isinstance(given, dict) and "critic_design" not in given:
-                # SB3 refuses policy_kwargs that differ from the saved ones, which record the critic design (see
-                # `_setup_model`): the given ones mean the design they meant at construction, the file's.
-                saved = (custom_objects or {}).get("policy_kwargs") or {}
-                kwargs["policy_kwargs"] = {"critic_design": saved.get("critic_design", DEFAULT_CRITIC_DESIGN), **given}
-            return super().load(
-                path,
-                env=env,
-                device=device,
-                custom_objects=custom_objects,
-                print_system_info=print_system_info,
-                force_reset=force_reset,
-                **kwargs,
-            )
+        custom_objects = _design_of_files_without_one(path, custom_objects)
+        given = kwargs.get("policy_kwargs")
+        if isinstance(given, dict) and "critic_design" not in given:
+            # SB3 refuses policy_kwargs that differ from the saved ones, which record the critic design (see
+            # `_setup_model`): the given ones mean the design they meant at construction, the file's.
+            saved = (custom_objects or {}).get("policy_kwargs") or {}
+            kwargs = {**kwargs, "policy_kwargs": {"critic_design": saved.get("critic_design", DEFAULT_CRITIC_DESIGN), **given}}
+        return custom_objects, kwargs
 
 
 def _design_of_files_without_one(

@@ -219,6 +219,25 @@ class CheckedModelFiles(BaseAlgorithm):
         super().set_parameters(params, exact_match=exact_match, device=device)
 
     @classmethod
+    def _load_arguments(
+        cls,
+        path: str | pathlib.Path | io.BufferedIOBase,
+        env: GymEnv | None,
+        custom_objects: dict[str, Any] | None,
+        kwargs: dict[str, Any],
+    ) -> tuple[dict[str, Any] | None, dict[str, Any]]:
+        """
+        The ``custom_objects`` and keyword arguments :meth:`load` passes to SB3's (unchanged here). Subclasses check
+        ``env`` and read ``path`` here, inside the error handling of :meth:`load`.
+
+        :param path: The file given to :meth:`load`
+        :param env: The environment given to :meth:`load`
+        :param custom_objects: The caller's ``custom_objects``
+        :param kwargs: The caller's extra keyword arguments
+        """
+        return custom_objects, kwargs
+
+    @classmethod
     def load(
         cls: type[SelfCheckedModelFiles],
         path: str | pathlib.Path | io.BufferedIOBase,
@@ -242,6 +261,7 @@ class CheckedModelFiles(BaseAlgorithm):
         :return: new model instance with loaded parameters
         """
         with model_file_errors(path, cls.__name__):
+            custom_objects, kwargs = cls._load_arguments(path, env, custom_objects, kwargs)
             return super().load(
                 path,
                 env=env,
