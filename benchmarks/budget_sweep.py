@@ -65,6 +65,12 @@ SHIPPED = "shipped"
 TARGET = 0.9
 
 
+def repository_path(path: str) -> str:
+    """``path`` relative to the repository's root where it lies inside it, else absolute."""
+    resolved = Path(path).resolve()
+    return str(resolved.relative_to(ROOT.parent)) if resolved.is_relative_to(ROOT.parent) else str(resolved)
+
+
 def config_name(gamma: float | None) -> str:
     return SHIPPED if gamma is None else f"gamma {gamma:g}"
 
@@ -72,7 +78,7 @@ def config_name(gamma: float | None) -> str:
 def score_checkpoint(run_dir: str, config: str, seed: int, timesteps: int, model_path: str, n_layouts: int) -> dict[str, Any]:
     """The success rate of one checkpoint on the first ``n_layouts`` validation layouts, one episode each."""
     th.set_num_threads(1)
-    settings, entry, model, kwargs = load_for_scoring(run_dir, model_path)
+    settings, entry, model, kwargs = load_for_scoring(run_dir, path=model_path)
     env = entry.wrap_env(gym.make(settings.env_id, **{**kwargs, "layout_seeds": VALIDATION_LAYOUT_SEEDS}))
     first = VALIDATION_LAYOUT_SEEDS[0]
     successes = [layout_success(model, env, first + k) for k in range(n_layouts)]
@@ -205,6 +211,7 @@ def main() -> None:
         "env": args.env,
         "algo": args.algo,
         "configs": configs,
+        "configs_file": repository_path(args.configs) if args.configs else None,
         "hyperparams": "shipped (hyperparams/{algo}.yml) with each config's overrides",
         "seeds": seeds,
         "n_timesteps": n_timesteps,

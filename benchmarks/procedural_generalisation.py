@@ -134,16 +134,21 @@ def layout_success(model: Any, env: gym.Env, layout_seed: int) -> bool:
 
 
 def load_for_scoring(
-    run_dir: str, model_path: str | None = None
+    run_dir: str, which: str = "final", path: str | None = None
 ) -> tuple[TrainSettings, ExperimentConfig, Any, dict[str, Any]]:
     """
-    A finished run's settings, entry and model (its final one, or the zip ``model_path``, on the CPU), and the
-    ``gym.make`` keywords of its entry without the training-only start jitter.
+    A finished run's settings, entry and model on the CPU, and the ``gym.make`` keywords of its entry without the
+    training-only start jitter.
+
+    :param run_dir: The run's folder
+    :param which: The run's model to load: ``final`` or ``best`` (see ``--model``), or another of
+        :func:`~sb3_adc.experiment.enjoy.model_path`'s
+    :param path: A zip file of the run to load instead (a checkpoint), ``which`` then not used
     """
     settings, config, layout = load_run(run_dir)
     if config.normalize is not None or config.frame_stack is not None:
         raise SystemExit(f"{run_dir}: scoring supports entries without `normalize` and `frame_stack`")
-    model = load_model(config, model_path or layout.final_model, device="cpu")
+    model = load_model(config, path or model_path(layout, which)[0], device="cpu")
     kwargs = {key: value for key, value in config.env_kwargs.items() if key not in TRAINING_ONLY}
     return settings, config, model, kwargs
 
@@ -248,8 +253,7 @@ def score_run(
     paths labelled with the run.
     """
     th.set_num_threads(1)
-    _, _, layout = load_run(run_dir)
-    _, config, model, kwargs = load_for_scoring(run_dir, model_path(layout, which)[0])
+    _, config, model, kwargs = load_for_scoring(run_dir, which)
     rows, paths = score_policy(model, config.wrap_env, env_id, kwargs, courses, course_episodes, n_layouts, trajectory_layouts)
     run = {"algo": algo, "env": env_id, "seed": seed}
     return [run | row for row in rows], [path.assign(algo=algo, seed=seed)[["algo", "seed", *path.columns]] for path in paths]

@@ -69,11 +69,14 @@ def test_configs_file_is_checked_and_committed_sweeps_name_theirs(tmp_path, monk
             budget_sweep.read_configs(str(path))
     path.write_text("long horizon:\n  gamma: 0.99\n")
     assert budget_sweep.read_configs(str(path)) == {"long horizon": {"gamma": 0.99}}
-    # A committed sweep from a configurations file ran that file's configurations.
+    # A committed sweep from a configurations file ran that file's configurations: the file its metadata names,
+    # or, for sweeps committed before the metadata named it, the file of the folder's name.
     for folder in FOLDERS:
+        metadata = json.loads((folder / "metadata.json").read_text())
+        named = metadata.get("configs_file")
         configs = ROOT / "benchmarks" / "configs" / "budget_sweep" / f"{folder.name.split('_', 2)[-1]}.yml"
-        if configs.exists():
-            metadata = json.loads((folder / "metadata.json").read_text())
+        configs = ROOT / named if named else configs
+        if named or configs.exists():
             assert metadata["configs"] == budget_sweep.read_configs(str(configs))
     sys.modules.pop("budget_sweep", None)
     sys.modules.pop("procedural_generalisation", None)
