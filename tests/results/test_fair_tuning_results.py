@@ -1,0 +1,65 @@
+"""The committed equal-budget studies of ``benchmarks/fair_tuning.py`` agree with themselves: every algorithm had the
+same number of finished trials, a trial's value is the mean of its seeds, the winner files hold the best trial, and
+the lidar study's summary and trial times rebuild from its trials."""
+
+from __future__ import annotations
+
+import csv
+import importlib
+import json
+import re
+import shutil
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+FOLDERS = sorted(path.parent for path in (ROOT / "benchmarks" / "results").glob("fair_tuning*/metadata.json"))
+
+
+def trials_of(folder: Path) -> dict[str, list[dict[str, str]]]:
+    studies = {}
+    for trials_csv in sorted(folder.glob("*/trials.csv")):
+        with open(trials_csv, encoding="utf-8") as stream:
+            studies[trials_csv.parent.name] = list(csv.DictReader(stream))
+    return studies
+
+
+@pytest.mark.parametrize("folder", FOLDERS, ids=[folder.name for folder in FOLDERS])
+def test_equal_budgets_values_and_winners(folder):
+    metadata = json.loads((folder / "metadata.json").read_text())
+    studies = trials_of(folder)
+    assert studies
+    measure = "success" if "success" in metadata["objective"] else "return"
+    for algo, trials in studies.items():
+        finished = [row for row in trials if row["state"] in ("COMPLETE", "PRUNED")]
+        assert len(finished) == metadata["n_trials"], algo
+        complete = [row for row in trials if row["state"] == "COMPLETE"]
+        for row in complete:
+            seeds = [float(row[f"{measure}_seed_{seed}"]) for seed in metadata["seeds"]]
+            assert float(row["value"]) == pytest.approx(sum(seeds) / len(seeds), abs=1e-3), (algo, row["number"])
+        best = max(complete, key=lambda row: float(row["value"]))
+        header = (folder / "hyperparams" / f"{algo}.yml").read_text().splitlines()[0]
+        named = re.search(r"\((?:trial (\d+)|the shipped entry)\)", header)
+        assert named is not None, header
+        assert (named.group(1) or "0") == best["number"], (algo, header)
+        assert f"of {metadata['n_trials']} trials" in header
+
+
+def test_lidar_summary_and_trial_times_rebuild_from_the_trials(tmp_path):
+    folder = ROOT / "benchmarks" / "results" / "fair_tuning_lidar"
+    metadata = json.loads((folder / "metadata.json").read_text())
+    for algo in trials_of(folder):
+        (tmp_path / algo).mkdir()
+        shutil.copy(folder / algo / "trials.csv", tmp_path / algo / "trials.csv")
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        fair_tuning = importlib.import_module("fair_tuning")
+        _, trial_time = fair_tuning.summarise(tmp_path, fair_tuning.STUDIES["lidar"])
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+        sys.modules.pop("fair_tuning", None)
+    assert (tmp_path / "summary.md").read_text() == (folder / "summary.md").read_text()
+    assert trial_time == metadata["trial_time_s"]
+    assert set(metadata["starting_points"]) == set(trials_of(folder))
