@@ -43,7 +43,14 @@ import gymnasium as gym
 import numpy as np
 import pandas as pd
 import torch as th
-from procedural_generalisation import layout_success, load_for_scoring, read_configs, report, training_time
+from procedural_generalisation import (
+    layout_success,
+    load_for_scoring,
+    read_configs,
+    report,
+    repository_path,
+    training_time,
+)
 
 from sb3_adc.config.loader import HyperparamsError
 from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSpec, run_benchmarks
@@ -63,12 +70,6 @@ TUNING_SEEDS = [0, 1, 2]
 N_CHECKPOINTS = 10
 SHIPPED = "shipped"
 TARGET = 0.9
-
-
-def repository_path(path: str) -> str:
-    """``path`` relative to the repository's root where it lies inside it, else absolute."""
-    resolved = Path(path).resolve()
-    return str(resolved.relative_to(ROOT.parent)) if resolved.is_relative_to(ROOT.parent) else str(resolved)
 
 
 def config_name(gamma: float | None) -> str:

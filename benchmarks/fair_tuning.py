@@ -180,7 +180,8 @@ def main() -> None:
         elapsed = time.perf_counter() - start
         if result.n_finished > n_trials:
             raise SystemExit(f"the {algo} study holds {result.n_finished} trials, more than the budget {n_trials}")
-        if result.n_finished > finished_before(output / algo / "trials.csv"):  # an invocation that only reports adds none
+        # An invocation that only reports (its study finished before) adds no wall time.
+        if result.n_finished > len(finished(read_trials(output / algo / "trials.csv"))):
             metadata["wall_time_s"][algo] = round(metadata["wall_time_s"].get(algo, 0.0) + elapsed, 1)
         (output / algo).mkdir(exist_ok=True)
         shutil.copyfile(Path(result.study_dir) / "trials.csv", output / algo / "trials.csv")
@@ -211,12 +212,17 @@ def main() -> None:
         print("\n".join(summary))
 
 
-def finished_before(trials_csv: Path) -> int:
-    """How many finished trials the copy of a study's ``trials.csv`` in the results holds (0 without one)."""
+def read_trials(trials_csv: Path) -> list[dict[str, str]]:
+    """The rows of a study's ``trials.csv`` in the results (none without one)."""
     if not trials_csv.is_file():
-        return 0
+        return []
     with open(trials_csv, encoding="utf-8") as stream:
-        return sum(row["state"] in ("COMPLETE", "PRUNED") for row in csv.DictReader(stream))
+        return list(csv.DictReader(stream))
+
+
+def finished(trials: list[dict[str, str]]) -> list[dict[str, str]]:
+    """The trials that count towards the budget: complete or pruned."""
+    return [row for row in trials if row["state"] in ("COMPLETE", "PRUNED")]
 
 
 def summarise(output: Path, study: Study) -> tuple[list[str], dict[str, float]]:
@@ -232,18 +238,16 @@ def summarise(output: Path, study: Study) -> tuple[list[str], dict[str, float]]:
     ]
     trial_time = {}
     for algo in ALGOS:
-        trials_csv = output / algo / "trials.csv"
-        if not trials_csv.is_file():
+        trials = read_trials(output / algo / "trials.csv")
+        if not trials:
             continue
-        with open(trials_csv, encoding="utf-8") as stream:
-            trials = list(csv.DictReader(stream))
-        finished = [row for row in trials if row["state"] in ("COMPLETE", "PRUNED")]
+        done = finished(trials)
         complete = [row for row in trials if row["state"] == "COMPLETE"]
         best = max(complete, key=lambda row: float(row["value"]))
         label = "starting entry" if best["shipped"] == "True" else f"trial {best['number']}"
         value = f"{float(best['value']):.1f}" if study.objective == "return" else f"{float(best['value']):.2f}"
-        summary.append(f"| {algo} | {len(finished)} | {label} | {value} |")
-        trial_time[algo] = round(sum(float(row["duration_s"] or 0.0) for row in finished), 1)
+        summary.append(f"| {algo} | {len(done)} | {label} | {value} |")
+        trial_time[algo] = round(sum(float(row["duration_s"] or 0.0) for row in done), 1)
     (output / "summary.md").write_text("\n".join(summary) + "\n")
     return summary, trial_time
 

@@ -97,6 +97,12 @@ def report(outcome: RunOutcome, done: int, total: int, by_folder: bool = False) 
         print(outcome.error, flush=True)
 
 
+def repository_path(path: str) -> str:
+    """``path`` relative to the repository's root where it lies inside it, else absolute."""
+    resolved = Path(path).resolve()
+    return str(resolved.relative_to(ROOT.parent)) if resolved.is_relative_to(ROOT.parent) else str(resolved)
+
+
 def read_configs(path: str) -> dict[str, dict[str, Any]]:
     """
     The configurations of a ``--configs`` file: configuration name (an algorithm, for this script) -> overrides of
@@ -425,7 +431,7 @@ def main() -> None:
             else "each entry's n_timesteps"
         ),
         "hyperparams": "shipped (hyperparams/{algo}.yml)"
-        + (f" with the overrides of {os.path.relpath(Path(args.configs).resolve(), ROOT.parent)}" if args.configs else ""),
+        + (f" with the overrides of {repository_path(args.configs)}" if args.configs else ""),
         **({"configs": configs} if args.configs else {}),
         "model": MODELS[args.model],
         "held_out_layouts": [TEST_LAYOUT_SEEDS[0], TEST_LAYOUT_SEEDS[0] + n_layouts - 1],

@@ -87,11 +87,11 @@ def test_score_run_reports_each_test_set_of_the_run(scripts, run_dir):
 
 
 def test_budget_sweep_scores_a_checkpoint_and_names_configs_files(scripts, run_dir, tmp_path):
-    _, budget_sweep = scripts
+    procedural, budget_sweep = scripts
     point = RunLayout(run_dir, ENV_ID).checkpoints()[0]
     row = budget_sweep.score_checkpoint(run_dir, "tiny", 3, point.timesteps, point.model, 2)
     assert (row["config"], row["algo"], row["timesteps"], row["episodes"]) == ("tiny", "td3", point.timesteps, 2)
     inside = ROOT / "benchmarks" / "configs" / "budget_sweep" / "shaping.yml"
-    assert budget_sweep.repository_path(str(inside)) == "benchmarks/configs/budget_sweep/shaping.yml"
+    assert procedural.repository_path(str(inside)) == "benchmarks/configs/budget_sweep/shaping.yml"
     outside = tmp_path / "configs.yml"
-    assert budget_sweep.repository_path(str(outside)) == str(outside.resolve())
+    assert procedural.repository_path(str(outside)) == str(outside.resolve())
