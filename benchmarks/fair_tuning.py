@@ -180,9 +180,12 @@ def main() -> None:
         elapsed = time.perf_counter() - start
         if result.n_finished > n_trials:
             raise SystemExit(f"the {algo} study holds {result.n_finished} trials, more than the budget {n_trials}")
-        # An invocation that only reports (its study finished before) adds no wall time.
-        if result.n_finished > len(finished(read_trials(output / algo / "trials.csv"))):
+        # An invocation that only reports (its study finished before) adds no wall time and keeps the workers and
+        # machine of the invocations that trained.
+        trained = result.n_finished > len(finished(read_trials(output / algo / "trials.csv")))
+        if trained:
             metadata["wall_time_s"][algo] = round(metadata["wall_time_s"].get(algo, 0.0) + elapsed, 1)
+        invocation = {"workers": args.workers, **machine_metadata()} if trained or "workers" not in metadata else {}
         (output / algo).mkdir(exist_ok=True)
         shutil.copyfile(Path(result.study_dir) / "trials.csv", output / algo / "trials.csv")
         shutil.copyfile(result.best_hyperparams_file, output / "hyperparams" / f"{algo}.yml")
@@ -204,8 +207,7 @@ def main() -> None:
                 "search_space": metadata.get("search_space", {}) | {algo: study.search_space.get(algo, {})},
                 "trial_time_s": trial_time,
                 "eval_env_kwargs": study.eval_env_kwargs,
-                "workers": args.workers,
-                **machine_metadata(),
+                **invocation,
             }
         )
         metadata_path.write_text(json.dumps(metadata, indent=2) + "\n")

@@ -5,6 +5,7 @@ every learner (and, for ADC, in the update settings they found for it), so no ba
 from __future__ import annotations
 
 import importlib
+import json
 import sys
 from pathlib import Path
 
@@ -51,3 +52,24 @@ def test_starting_entry_is_the_shipped_one_changed_alike(fair_tuning, algo):
         assert start["policy_delay"] == 2
         assert start["target_policy_noise"] == 0.2
         assert "n_critics=2" in start["policy_kwargs"]
+
+
+def test_report_only_invocation_keeps_the_training_invocations_metadata(fair_tuning, tmp_path, monkeypatch):
+    """A second invocation of a finished study trains nothing: it must not add wall time, nor replace the workers
+    (and machine) of the invocation that trained with its own."""
+    monkeypatch.setattr(fair_tuning, "RUNS_DIR", tmp_path / "runs" / "fair_tuning")
+    monkeypatch.setattr(fair_tuning, "RESULTS_DIR", tmp_path / "results" / "fair_tuning")
+    metadata_path = tmp_path / "results" / "fair_tuning_quick" / "metadata.json"
+
+    def invoke(workers: int) -> dict:
+        monkeypatch.setattr(sys, "argv", ["fair_tuning.py", "--quick", "--algos", "ddpg", "--workers", str(workers)])
+        fair_tuning.main()
+        return json.loads(metadata_path.read_text())
+
+    trained = invoke(1)
+    assert trained["workers"] == 1
+    assert trained["wall_time_s"]["ddpg"] > 0
+    reported = invoke(2)
+    assert reported["workers"] == 1
+    assert reported["wall_time_s"] == trained["wall_time_s"]
+    assert reported["trial_time_s"] == trained["trial_time_s"]
