@@ -85,7 +85,7 @@ def display_name(algo: str) -> str:
     return ALGO_DISPLAY_NAMES.get(str(algo), str(algo))
 
 
-def _colors(algos: list[str]) -> dict[str, tuple[float, float, float, float]]:
+def algo_colors(algos: list[str]) -> dict[str, tuple[float, float, float, float]]:
     """The same color for an algorithm in every figure."""
     cmap = colormaps["tab10"]
     return {str(algo): cmap(index % 10) for index, algo in enumerate(sorted(algos))}
@@ -109,7 +109,7 @@ def _grid(n_panels: int, rows_per_panel: int = 1) -> tuple[Figure, list[Axes]]:
 def _plot_mean_curves(curves: pd.DataFrame, path: str, x: str, xlabel: str, ylabel: str, title: str) -> str:
     """One panel per environment: the mean across runs against column ``x``, with its 95% CI, per algorithm."""
     envs = sorted(curves["env"].unique())
-    colors = _colors(list(curves["algo"].unique()))
+    colors = algo_colors(list(curves["algo"].unique()))
     figure, axes = _grid(len(envs))
     for ax, env in zip(axes, envs, strict=False):
         for algo, group in curves[curves["env"] == env].groupby("algo", sort=True):
@@ -170,7 +170,7 @@ def plot_reward_variance(curves: pd.DataFrame, episodes: pd.DataFrame | None, pa
     :param window: Episodes of the moving average
     """
     envs = sorted(curves["env"].unique())
-    colors = _colors(list(curves["algo"].unique()))
+    colors = algo_colors(list(curves["algo"].unique()))
     per_episode = episode_variance(episodes, window) if episodes is not None and not episodes.empty else None
     rows = 2 if per_episode is not None and not per_episode.empty else 1
     figure = Figure(figsize=(PANEL_WIDTH * len(envs), PANEL_HEIGHT * rows), layout="constrained")
@@ -218,7 +218,7 @@ def plot_final_performance(performance: pd.DataFrame, path: str, quantity: str =
     :param quantity: What the values are, for the axis labels and the title (e.g. ``"success rate"``)
     """
     envs = sorted(performance["env"].unique())
-    colors = _colors(list(performance["algo"].unique()))
+    colors = algo_colors(list(performance["algo"].unique()))
     limits = _shared_limits(
         performance[["iqm_ci_low", "mean_ci_low"]].to_numpy(dtype=np.float64),
         performance[["iqm_ci_high", "mean_ci_high"]].to_numpy(dtype=np.float64),
@@ -327,7 +327,7 @@ def plot_performance_profiles(profiles: pd.DataFrame, path: str) -> str:
     :param path: The PNG file
     """
     envs = sorted(profiles["env"].unique())
-    colors = _colors(list(profiles["algo"].unique()))
+    colors = algo_colors(list(profiles["algo"].unique()))
     figure, axes = _grid(len(envs))
     for ax, env in zip(axes, envs, strict=False):
         table = profiles[profiles["env"] == env]
@@ -368,7 +368,7 @@ def plot_probability_of_improvement(improvement: pd.DataFrame, path: str) -> str
     :param path: The PNG file
     """
     algos = sorted(set(improvement["algo_x"]) | set(improvement["algo_y"]))
-    colors = _colors(algos)
+    colors = algo_colors(algos)
     n_pairs = max(len(improvement), 1)
     figure = Figure(figsize=(PANEL_WIDTH, 1.6 + 0.5 * n_pairs), layout="constrained")
     ax = figure.subplots()

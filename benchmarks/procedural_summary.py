@@ -1,0 +1,214 @@
+"""
+Every committed grid of ``procedural_generalisation.py`` on one page: per grid and algorithm, the held-out layout
+success and the success on the unseen course files, beside the memoryless reference planner and the 90% that
+issue 9 asks of the shipped ADC entry. It reads the committed results and trains nothing.
+
+Per grid (a folder of ``benchmarks/results/procedural_generalisation/`` with a ``success.csv``) and algorithm:
+
+- the held-out layouts' IQM and mean with their 95% stratified-bootstrap CIs, as the grid's ``success_rates.csv``
+  has them, and how many runs reach 0.90 there;
+- the unseen course files (every shipped course file but ``training``) pooled per run: the share of a run's
+  course-file episodes without a collision, then the IQM and mean over runs with 95% CIs (rliable, the grid's
+  bootstrap replications, seed 0) and how many runs reach 0.90.
+
+The reference planner (``reference_planner.py``) adds one row per observation and robot: one deterministic
+policy, so a rate without a CI. Writes ``summary.csv`` and ``summary.md`` beside the grids and the figure
+``docs/_static/benchmarks/procedural_summary.png``.
+
+Usage::
+
+    python benchmarks/procedural_summary.py
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import pandas as pd
+
+from sb3_adc.experiment.plots import algo_colors, display_name
+from sb3_adc.experiment.statistics import final_performance
+
+ROOT = Path(__file__).resolve().parent
+RESULTS_DIR = ROOT / "results" / "procedural_generalisation"
+FIGURE = ROOT.parent / "docs" / "_static" / "benchmarks" / "procedural_summary.png"
+ALGOS = ["adc", "ddpg", "td3", "sac"]
+HELD_OUT = "held-out layouts"
+COURSE_FILES = "unseen course files"
+#: What issue 9 asks of the shipped ADC entry on both test sets.
+TARGET = 0.9
+COLUMNS = [
+    "grid",
+    "env",
+    "robot",
+    "model",
+    "algo",
+    "timesteps",
+    "n_runs",
+    "test_set",
+    "iqm",
+    "iqm_ci_low",
+    "iqm_ci_high",
+    "mean",
+    "mean_ci_low",
+    "mean_ci_high",
+    "runs_at_target",
+]
+
+
+def grids(results: Path) -> list[Path]:
+    """The grids' folders: those with a ``success.csv``, in name order."""
+    return sorted(path.parent for path in results.glob("*/success.csv"))
+
+
+def course_file_rates(success: pd.DataFrame) -> pd.DataFrame:
+    """Per run, the share of its episodes on the unseen course files (all but ``training``) without a collision."""
+    files = success[~success["test_set"].isin([HELD_OUT, "training"])]
+    pooled = files.groupby(["algo", "seed"], sort=True)[["successes", "episodes"]].sum().reset_index()
+    return pooled.assign(success_rate=pooled["successes"] / pooled["episodes"])
+
+
+def summarise_grid(folder: Path) -> pd.DataFrame:
+    """The rows of one grid (see the module's docstring)."""
+    metadata = json.loads((folder / "metadata.json").read_text())
+    success = pd.read_csv(folder / "success.csv")
+    timesteps = pd.read_csv(folder / "final.csv").groupby("algo")["timesteps"].max()
+    held_out = pd.read_csv(folder / "success_rates.csv")
+    held_out = held_out[held_out["test_set"] == HELD_OUT]
+    files = course_file_rates(success)
+    performance = final_performance(
+        files.assign(env=COURSE_FILES).rename(columns={"success_rate": "mean_return"}),
+        reps=int(metadata["bootstrap_reps"]),
+    ).rename(columns={"env": "test_set"})
+    rates = {
+        HELD_OUT: success[success["test_set"] == HELD_OUT].set_index(["algo", "seed"])["success_rate"],
+        COURSE_FILES: files.set_index(["algo", "seed"])["success_rate"],
+    }
+    # Grids written before --model existed scored the final models.
+    model = "best" if metadata.get("model", "final").startswith("each run's best") else "final"
+    rows = []
+    for table in (held_out, performance):
+        for row in table.to_dict("records"):
+            algo, test_set = row["algo"], row["test_set"]
+            rows.append(
+                {
+                    **row,
+                    "grid": folder.name,
+                    "env": metadata["env"],
+                    "robot": metadata["robot"],
+                    "model": model,
+                    "timesteps": int(timesteps[algo]),
+                    "runs_at_target": int((rates[test_set].loc[algo] >= TARGET).sum()),
+                }
+            )
+    return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def planner_rows(results: Path) -> pd.DataFrame:
+    """The reference planner's rates on both test sets, one row per observation and robot."""
+    planner = pd.read_csv(results / "reference_planner.csv")
+    rows = []
+    for (env, robot), group in planner.groupby(["env", "robot"], sort=True):
+        files = group[~group["test_set"].isin([HELD_OUT, "training"])]
+        held_out = group[group["test_set"] == HELD_OUT]
+        for test_set, successes, episodes in (
+            (HELD_OUT, held_out["successes"].sum(), held_out["episodes"].sum()),
+            (COURSE_FILES, files["successes"].sum(), files["episodes"].sum()),
+        ):
+            rate = successes / episodes
+            rows.append(
+                {
+                    "grid": f"reference_planner ({'noisy' if 'Noisy' in env else 'clean'}, {robot})",
+                    "env": env,
+                    "robot": robot,
+                    "model": "planner",
+                    "algo": "planner",
+                    "n_runs": 1,
+                    "test_set": test_set,
+                    **dict.fromkeys(["iqm", "iqm_ci_low", "iqm_ci_high", "mean", "mean_ci_low", "mean_ci_high"], rate),
+                    "runs_at_target": int(rate >= TARGET),
+                }
+            )
+    return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def summarise(results: Path) -> pd.DataFrame:
+    """Every grid's rows, then the planner's."""
+    return pd.concat([*(summarise_grid(folder) for folder in grids(results)), planner_rows(results)], ignore_index=True)
+
+
+def markdown(summary: pd.DataFrame) -> str:
+    """One line per grid and algorithm, both test sets side by side."""
+    lines = [
+        f"| grid | observations | robot | model | algorithm | steps | runs | {HELD_OUT}: IQM [95% CI] | runs >= {TARGET:.2f} "
+        f"| {COURSE_FILES}: IQM [95% CI] | runs >= {TARGET:.2f} |",
+        "|---|---|---|---|---|---:|---:|---|---:|---|---:|",
+    ]
+    for (grid, algo), group in summary.groupby(["grid", "algo"], sort=False):
+        cells = []
+        for test_set in (HELD_OUT, COURSE_FILES):
+            row = group[group["test_set"] == test_set].iloc[0]
+            interval = "" if algo == "planner" else f" [{row.iqm_ci_low:.2f}, {row.iqm_ci_high:.2f}]"
+            cells += [f"{row.iqm:.2f}{interval}", str(row.runs_at_target)]
+        first = group.iloc[0]
+        observations = "noisy" if "Noisy" in first["env"] else "clean"
+        steps = "" if pd.isna(first["timesteps"]) else f"{int(first['timesteps']):,}"
+        lines.append(
+            f"| {grid} | {observations} | {first['robot']} | {first['model']} | {display_name(algo)} | {steps} "
+            f"| {first['n_runs']} | " + " | ".join(cells) + " |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def plot(summary: pd.DataFrame, path: Path) -> None:
+    """Both test sets side by side, one row per grid and algorithm, IQM with its 95% CI and the 90% target."""
+    colors = algo_colors(ALGOS) | {"planner": (0.3, 0.3, 0.3, 1.0)}
+    labels = list(dict.fromkeys(zip(summary["grid"], summary["algo"], strict=True)))
+    figure, axes = plt.subplots(1, 2, figsize=(13, 0.32 * len(labels) + 1.6), sharey=True)
+    for ax, test_set in zip(axes, (HELD_OUT, COURSE_FILES), strict=True):
+        table = summary[summary["test_set"] == test_set].set_index(["grid", "algo"])
+        for position, label in enumerate(labels):
+            row = table.loc[label]
+            errors = [[row.iqm - row.iqm_ci_low], [row.iqm_ci_high - row.iqm]]
+            marker = "D" if label[1] == "planner" else "o"
+            ax.errorbar(row.iqm, position, xerr=errors, fmt=marker, color=colors[label[1]], capsize=3)
+        ax.axvline(TARGET, color="black", linestyle="--", linewidth=1)
+        ax.set(
+            title=test_set, xlabel="success rate, IQM over runs (share of collision-free episodes, 95% CI)", xlim=(-0.02, 1.02)
+        )
+        ax.grid(alpha=0.3, axis="x")
+    axes[0].set_yticks(range(len(labels)), [f"{grid}: {display_name(algo)}" for grid, algo in labels], fontsize="small")
+    axes[0].invert_yaxis()
+    handles = [
+        plt.Line2D(
+            [], [], color=colors[algo], marker="D" if algo == "planner" else "o", linestyle="", label=display_name(algo)
+        )
+        for algo in [*ALGOS, "planner"]
+    ] + [plt.Line2D([], [], color="black", linestyle="--", label=f"target {TARGET:.0%}")]
+    axes[1].legend(handles=handles, fontsize="small", loc="upper left")
+    figure.suptitle(
+        "Procedural lidar course: success on layouts and course files never trained on (learners: 10 fresh seeds each)"
+    )
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+
+
+def main() -> None:
+    summary = summarise(RESULTS_DIR)
+    summary.to_csv(RESULTS_DIR / "summary.csv", index=False)
+    table = markdown(summary)
+    (RESULTS_DIR / "summary.md").write_text(table)
+    FIGURE.parent.mkdir(parents=True, exist_ok=True)
+    plot(summary, FIGURE)
+    print(table)
+    print(f"wrote {RESULTS_DIR / 'summary.csv'}, {RESULTS_DIR / 'summary.md'} and {FIGURE}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,69 @@
+"""``benchmarks/procedural_summary.py``: the pooling of the course files, and the committed summary is that of every
+committed grid (a grid committed without re-running the summary fails here)."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def summary_module():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    yield importlib.import_module("procedural_summary")
+    sys.path.remove(str(ROOT / "benchmarks"))
+
+
+def test_course_files_pool_episodes_per_run_without_training_or_held_out(summary_module):
+    success = pd.DataFrame(
+        [
+            # test_set, algo, seed, episodes, successes
+            ("held-out layouts", "td3", 1, 100, 0),
+            ("training", "td3", 1, 10, 0),
+            ("unseen_a", "td3", 1, 10, 7),
+            ("unseen_b", "td3", 1, 30, 30),
+            ("unseen_a", "td3", 2, 10, 1),
+            ("unseen_b", "td3", 2, 30, 0),
+            ("unseen_a", "adc", 1, 10, 10),
+        ],
+        columns=["test_set", "algo", "seed", "episodes", "successes"],
+    )
+    rates = summary_module.course_file_rates(success).set_index(["algo", "seed"])["success_rate"]
+    # Pooled by episodes (37 of 40), not the mean of the files' rates (0.85).
+    assert rates.loc[("td3", 1)] == pytest.approx(37 / 40)
+    assert rates.loc[("td3", 2)] == pytest.approx(1 / 40)
+    assert rates.loc[("adc", 1)] == 1.0
+    assert len(rates) == 3
+
+
+@pytest.fixture(scope="module")
+def rebuilt(summary_module):
+    return summary_module.summarise(summary_module.RESULTS_DIR)
+
+
+def test_committed_summary_is_that_of_every_committed_grid(summary_module, rebuilt):
+    results = summary_module.RESULTS_DIR
+    committed = pd.read_csv(results / "summary.csv")
+    pd.testing.assert_frame_equal(committed, rebuilt, check_dtype=False, atol=1e-9)
+    assert set(committed["grid"]) >= {folder.name for folder in summary_module.grids(results)}
+    assert (results / "summary.md").read_text() == summary_module.markdown(rebuilt)
+
+
+def test_held_out_rows_are_the_grids_own_statistics_and_counts(summary_module, rebuilt):
+    """The held-out IQM is the grid's (not a second bootstrap) and the count of runs at the target is the runs'."""
+    for folder in summary_module.grids(summary_module.RESULTS_DIR):
+        rows = rebuilt[rebuilt["grid"] == folder.name]
+        held_out = rows[rows["test_set"] == "held-out layouts"].set_index("algo")
+        grid = pd.read_csv(folder / "success_rates.csv")
+        grid = grid[grid["test_set"] == "held-out layouts"].set_index("algo")
+        pd.testing.assert_series_equal(held_out["iqm"], grid["iqm"], check_names=False)
+        success = pd.read_csv(folder / "success.csv")
+        success = success[success["test_set"] == "held-out layouts"]
+        for algo, count in held_out["runs_at_target"].items():
+            assert count == (success[success["algo"] == algo]["success_rate"] >= 0.9).sum()
