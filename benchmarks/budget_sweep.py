@@ -49,7 +49,7 @@ from procedural_generalisation import (
     read_configs,
     report,
     repository_path,
-    training_time,
+    training_record,
 )
 
 from sb3_adc.config.loader import HyperparamsError
@@ -195,7 +195,7 @@ def main() -> None:
             if len(checkpoints) < N_CHECKPOINTS:
                 raise SystemExit(f"{run_dir}: {len(checkpoints)} checkpoints, expected {N_CHECKPOINTS}")
             jobs += [(run_dir, config, seed, point.timesteps, point.model, n_layouts) for point in checkpoints]
-    training_s, training_workers = training_time(output, statuses, time.perf_counter() - start, args.workers)
+    training = training_record(output, statuses, time.perf_counter() - start, args.workers)
     start = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         sweep = pd.DataFrame(list(pool.map(score_checkpoint, *zip(*jobs, strict=True))))
@@ -221,8 +221,7 @@ def main() -> None:
         "target_success": TARGET,
         "best": {"config": best["config"], "timesteps": int(best["timesteps"]), "mean": round(float(best["mean"]), 3)},
         "runs_this_invocation": dict(sorted(statuses.items())),
-        "training_wall_time_s": training_s,
-        "training_workers": training_workers,
+        **training,
         "scoring_wall_time_s": scoring_s,
         "workers": args.workers,
         "bootstrap_reps": reps,

@@ -7,8 +7,9 @@ each final model is scored on layouts and courses it never saw:
 - every shipped course file (``envs/courses/``: the paper-style training loop and the unseen layouts, obstacle
   courses included), ``--course-episodes`` episodes each from a start jittered by 0.1 m and 10 degrees.
 
-An episode is a success when it ends without a collision (``info["is_success"]``: 500 steps driven). Per run the
-success rate of each test set; per algorithm and test set, the IQM and mean of the runs' rates with 95%
+An episode is a success when it ends without a collision (``info["is_success"]``: 500 steps driven); a failed
+episode records what the robot hit (a wall, a box, a cylinder or a wall stub: ``hit_*`` in ``success.csv``). Per
+run the success rate of each test set; per algorithm and test set, the IQM and mean of the runs' rates with 95%
 stratified-bootstrap CIs (rliable), and the probability that ADC's rate exceeds each other algorithm's. The paths
 of every run on the first ``--trajectory-layouts`` held-out layouts are kept (``trajectories.csv.gz``) and drawn.
 
@@ -80,6 +81,9 @@ COURSE_JITTER = {"start_position_jitter": 0.1, "start_heading_jitter_deg": 10.0}
 #: Keywords of the training entries that only vary the start during training.
 TRAINING_ONLY = ("start_position_jitter", "start_heading_jitter_deg")
 TRAJECTORIES_CSV = "trajectories.csv.gz"
+#: What a failed episode can have hit (``CourseSimulation.touching``): ``success.csv`` counts, per test set, the
+#: failed episodes that ended touching each (an episode ending against a wall and a stub counts for both).
+HITS = ("wall", "box", "cylinder", "stub")
 #: What ``--model`` scores, as the metadata says it.
 MODELS = {
     "final": "each run's final model",
@@ -121,22 +125,39 @@ def read_configs(path: str) -> dict[str, dict[str, Any]]:
     return content
 
 
-def episode_success(model: Any, env: gym.Env, **reset: Any) -> bool:
-    """Run one deterministic episode; whether it ended without a collision."""
+def episode_outcome(model: Any, env: gym.Env, **reset: Any) -> tuple[bool, list[str]]:
+    """
+    Run one deterministic episode: whether it ended without a collision and, if not, what the robot hit (the
+    kinds of :data:`HITS` it touches where it stopped, each once).
+    """
     observation, _ = env.reset(**reset)
     while True:
         action, _ = model.predict(observation, deterministic=True)
         observation, _, terminated, truncated, info = env.step(action)
         if terminated or truncated:
-            return bool(info["is_success"])
+            if info["is_success"]:
+                return True, []
+            course_env = env.unwrapped
+            x, y, _ = course_env.pose  # type: ignore[attr-defined]
+            return False, sorted(set(course_env.simulation.touching(x, y)))  # type: ignore[attr-defined]
+
+
+def episode_success(model: Any, env: gym.Env, **reset: Any) -> bool:
+    """Run one deterministic episode; whether it ended without a collision."""
+    return episode_outcome(model, env, **reset)[0]
+
+
+def layout_outcome(model: Any, env: gym.Env, layout_seed: int) -> tuple[bool, list[str]]:
+    """
+    :func:`episode_outcome` on one procedural layout, the episode seeded by its layout seed (the noisy variants'
+    observation noise too), so that scoring the same model again gives the same result.
+    """
+    return episode_outcome(model, env, seed=layout_seed, options={"layout_seed": layout_seed})
 
 
 def layout_success(model: Any, env: gym.Env, layout_seed: int) -> bool:
-    """
-    :func:`episode_success` on one procedural layout, the episode seeded by its layout seed (the noisy variants'
-    observation noise too), so that scoring the same model again gives the same result.
-    """
-    return episode_success(model, env, seed=layout_seed, options={"layout_seed": layout_seed})
+    """:func:`layout_outcome`'s success alone."""
+    return layout_outcome(model, env, layout_seed)[0]
 
 
 def load_for_scoring(
@@ -159,18 +180,27 @@ def load_for_scoring(
     return settings, config, model, kwargs
 
 
-def training_time(output: Path, statuses: Counter[str], seconds: float, workers: int) -> tuple[float, int]:
+def training_record(output: Path, statuses: Counter[str], seconds: float, workers: int) -> dict[str, Any]:
     """
-    The training wall-clock time and workers to record in ``output/metadata.json``: this invocation's, or, when
-    every run was finished before, those of the invocation that trained them.
+    The training facts to record in ``output/metadata.json`` (``training_wall_time_s``, ``training_workers`` and
+    ``training_runs``, the runs trained, resumed or found finished): this invocation's, or, when every run was
+    finished before (an invocation that only scores), those of the invocation that trained them.
     """
+    this = {
+        "training_wall_time_s": round(seconds, 1),
+        "training_workers": workers,
+        "training_runs": dict(sorted(statuses.items())),
+    }
     previous = output / "metadata.json"
-    if not statuses["trained"] + statuses["resumed"] and previous.exists():
-        earlier = json.loads(previous.read_text())
-        return earlier.get("training_wall_time_s", round(seconds, 1)), earlier.get(
-            "training_workers", earlier.get("workers", workers)
-        )
-    return round(seconds, 1), workers
+    if statuses["trained"] + statuses["resumed"] or not previous.exists():
+        return this
+    earlier = json.loads(previous.read_text())
+    # Older metadata: the invocation's workers and run counts were its training's.
+    return {
+        "training_wall_time_s": earlier.get("training_wall_time_s", this["training_wall_time_s"]),
+        "training_workers": earlier.get("training_workers", earlier.get("workers", workers)),
+        "training_runs": earlier.get("training_runs", earlier.get("runs_this_invocation", this["training_runs"])),
+    }
 
 
 def layout_name(layout_seed: int) -> str:
@@ -204,23 +234,27 @@ def score_policy(
 
     :param wrap: The wrappers the policy was trained with (a run's ``config.wrap_env``)
     :param env_kwargs: ``gym.make`` keywords of every test environment
-    :return: One row per test set (``test_set``, ``episodes``, ``successes``, ``success_rate``) and the paths
+    :return: One row per test set (``test_set``, ``episodes``, ``successes``, ``success_rate`` and ``hit_{kind}``
+        for each of :data:`HITS`) and the paths
     """
 
-    def row(test_set: str, successes: list[bool]) -> dict[str, Any]:
+    def row(test_set: str, outcomes: list[tuple[bool, list[str]]]) -> dict[str, Any]:
+        successes = [success for success, _ in outcomes]
         return {
             "test_set": test_set,
             "episodes": len(successes),
             "successes": int(sum(successes)),
             "success_rate": float(np.mean(successes)),
+            **{f"hit_{kind}": sum(kind in hit for _, hit in outcomes) for kind in HITS},
         }
 
     rows = []
     env = wrap(gym.make(env_id, **{**env_kwargs, "layout_seeds": TEST_LAYOUT_SEEDS}))
     first = TEST_LAYOUT_SEEDS[0]
-    successes, paths = [], []
+    outcomes: list[tuple[bool, list[str]]] = []
+    paths = []
     for k in range(n_layouts):
-        successes.append(layout_success(policy, env, first + k))
+        outcomes.append(layout_outcome(policy, env, first + k))
         if k < trajectory_layouts:
             path = env.unwrapped.trajectory  # type: ignore[attr-defined]
             paths.append(
@@ -230,15 +264,15 @@ def score_policy(
                         "step": np.arange(len(path)),
                         "x": path[:, 0].round(3),
                         "y": path[:, 1].round(3),
-                        "success": successes[-1],
+                        "success": outcomes[-1][0],
                     }
                 )
             )
-    rows.append(row(HELD_OUT, successes))
+    rows.append(row(HELD_OUT, outcomes))
     env.close()
     for course in courses:
         env = wrap(gym.make(env_id, **{**env_kwargs, **COURSE_JITTER, "course": course}))
-        rows.append(row(course, [episode_success(policy, env, seed=k) for k in range(course_episodes)]))
+        rows.append(row(course, [episode_outcome(policy, env, seed=k) for k in range(course_episodes)]))
         env.close()
     return rows, paths
 
@@ -376,7 +410,7 @@ def main() -> None:
         finals.append(pd.read_csv(result.tables[FINAL_CSV]))
     # The training of the grid (recorded beside its final models when `--model best` finds every run finished).
     elapsed = time.perf_counter() - start
-    training_s, training_workers = training_time(RESULTS_DIR / (grid + quick), statuses, elapsed, args.workers)
+    training = training_record(RESULTS_DIR / (grid + quick), statuses, elapsed, args.workers)
     pd.concat(finals, ignore_index=True).to_csv(output / FINAL_CSV, index=False)
     jobs = [
         (
@@ -439,8 +473,7 @@ def main() -> None:
         "courses": courses,
         "course_episodes": args.course_episodes,
         "course_start_jitter": COURSE_JITTER,
-        "training_wall_time_s": training_s,
-        "training_workers": training_workers,
+        **training,
         "runs_this_invocation": dict(sorted(statuses.items())),
         "scoring_wall_time_s": round(scoring_s, 1),
         "workers": args.workers,

@@ -28,11 +28,13 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
+import gymnasium as gym
 import matplotlib.pyplot as plt
 import pandas as pd
 
 from sb3_adc.experiment.plots import algo_colors, display_name
 from sb3_adc.experiment.statistics import FINAL_PERFORMANCE_COLUMNS, final_performance
+from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS
 
 ROOT = Path(__file__).resolve().parent
 RESULTS_DIR = ROOT / "results" / "procedural_generalisation"
@@ -44,7 +46,23 @@ COURSE_FILES = "unseen course files"
 TARGET = 0.9
 #: The statistics' columns (``env`` becomes the test set) between the grid's facts and the runs at the target.
 STATISTICS = [column for column in FINAL_PERFORMANCE_COLUMNS if column not in ("env", "algo", "n_runs")]
-COLUMNS = ["grid", "env", "robot", "model", "algo", "timesteps", "n_runs", "test_set", *STATISTICS, "runs_at_target"]
+#: What failed episodes hit (``procedural_generalisation.HITS``), summed over the runs; empty for grids scored
+#: before the scoring recorded it.
+HITS = ["hit_wall", "hit_box", "hit_cylinder", "hit_stub"]
+COLUMNS = [
+    "grid",
+    "env",
+    "robot",
+    "model",
+    "algo",
+    "timesteps",
+    "n_runs",
+    "test_set",
+    *STATISTICS,
+    "runs_at_target",
+    "failed_episodes",
+    *HITS,
+]
 
 
 def grids(results: Path) -> list[Path]:
@@ -52,10 +70,23 @@ def grids(results: Path) -> list[Path]:
     return sorted(path.parent for path in results.glob("*/success.csv"))
 
 
+def unseen_files(success: pd.DataFrame) -> pd.DataFrame:
+    """The rows of the unseen course files: every test set but the held-out layouts and the ``training`` file."""
+    return success[~success["test_set"].isin([HELD_OUT, "training"])]
+
+
+def failures(rows: pd.DataFrame) -> dict[str, float]:
+    """The failed episodes of ``rows`` (one test set or several) and what they hit, summed; hits NaN if unrecorded."""
+    recorded = set(HITS) <= set(rows.columns)
+    return {
+        "failed_episodes": int(rows["episodes"].sum() - rows["successes"].sum()),
+        **{hit: int(rows[hit].sum()) if recorded else float("nan") for hit in HITS},
+    }
+
+
 def course_file_rates(success: pd.DataFrame) -> pd.DataFrame:
     """Per run, the share of its episodes on the unseen course files (all but ``training``) without a collision."""
-    files = success[~success["test_set"].isin([HELD_OUT, "training"])]
-    pooled = files.groupby(["algo", "seed"], sort=True)[["successes", "episodes"]].sum().reset_index()
+    pooled = unseen_files(success).groupby(["algo", "seed"], sort=True)[["successes", "episodes"]].sum().reset_index()
     return pooled.assign(success_rate=pooled["successes"] / pooled["episodes"])
 
 
@@ -75,6 +106,7 @@ def summarise_grid(folder: Path) -> pd.DataFrame:
         HELD_OUT: success[success["test_set"] == HELD_OUT].set_index(["algo", "seed"])["success_rate"],
         COURSE_FILES: files.set_index(["algo", "seed"])["success_rate"],
     }
+    episodes = {HELD_OUT: success[success["test_set"] == HELD_OUT], COURSE_FILES: unseen_files(success)}
     # Grids written before --model existed scored the final models.
     model = "best" if metadata.get("model", "final").startswith("each run's best") else "final"
     rows = []
@@ -90,6 +122,7 @@ def summarise_grid(folder: Path) -> pd.DataFrame:
                     "model": model,
                     "timesteps": int(timesteps[algo]),
                     "runs_at_target": int((rates[test_set].loc[algo] >= TARGET).sum()),
+                    **failures(episodes[test_set][episodes[test_set]["algo"] == algo]),
                 }
             )
     return pd.DataFrame(rows, columns=COLUMNS)
@@ -100,13 +133,8 @@ def planner_rows(results: Path) -> pd.DataFrame:
     planner = pd.read_csv(results / "reference_planner.csv")
     rows = []
     for (env, robot), group in planner.groupby(["env", "robot"], sort=True):
-        files = group[~group["test_set"].isin([HELD_OUT, "training"])]
-        held_out = group[group["test_set"] == HELD_OUT]
-        for test_set, successes, episodes in (
-            (HELD_OUT, held_out["successes"].sum(), held_out["episodes"].sum()),
-            (COURSE_FILES, files["successes"].sum(), files["episodes"].sum()),
-        ):
-            rate = successes / episodes
+        for test_set, episodes in ((HELD_OUT, group[group["test_set"] == HELD_OUT]), (COURSE_FILES, unseen_files(group))):
+            rate = episodes["successes"].sum() / episodes["episodes"].sum()
             rows.append(
                 {
                     "grid": f"reference_planner ({'noisy' if 'Noisy' in env else 'clean'}, {robot})",
@@ -118,9 +146,22 @@ def planner_rows(results: Path) -> pd.DataFrame:
                     "test_set": test_set,
                     **dict.fromkeys(STATISTICS, rate),
                     "runs_at_target": int(rate >= TARGET),
+                    **failures(episodes),
                 }
             )
     return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def held_out_obstacles(env_id: str = "sb3_adc/LidarObstacleCourse-v1", n_layouts: int = 100) -> dict[str, int]:
+    """How many obstacles of each kind the first ``n_layouts`` held-out layouts hold together (the kinematic robot's)."""
+    env = gym.make(env_id, layout_seeds=TEST_LAYOUT_SEEDS)
+    counts = dict.fromkeys(["box", "cylinder", "stub"], 0)
+    for k in range(n_layouts):
+        env.reset(options={"layout_seed": TEST_LAYOUT_SEEDS[0] + k})
+        for obstacle in env.unwrapped.course.obstacles:  # type: ignore[attr-defined]
+            counts["stub" if obstacle.shape == "wall" else obstacle.shape] += 1
+    env.close()
+    return counts
 
 
 def summarise(results: Path) -> pd.DataFrame:
@@ -128,8 +169,12 @@ def summarise(results: Path) -> pd.DataFrame:
     return pd.concat([*(summarise_grid(folder) for folder in grids(results)), planner_rows(results)], ignore_index=True)
 
 
-def markdown(summary: pd.DataFrame) -> str:
-    """One line per grid and algorithm, both test sets side by side."""
+def markdown(summary: pd.DataFrame, obstacles: dict[str, int]) -> str:
+    """
+    One line per grid and algorithm, both test sets side by side; then what the failed episodes hit.
+
+    :param obstacles: The obstacles of the held-out layouts by kind (:func:`held_out_obstacles`)
+    """
     lines = [
         f"| grid | observations | robot | model | algorithm | steps | runs | {HELD_OUT}: IQM [95% CI] | runs >= {TARGET:.2f} "
         f"| {COURSE_FILES}: IQM [95% CI] | runs >= {TARGET:.2f} |",
@@ -148,6 +193,19 @@ def markdown(summary: pd.DataFrame) -> str:
             f"| {grid} | {observations} | {first['robot']} | {first['model']} | {display_name(algo)} | {steps} "
             f"| {first['n_runs']} | " + " | ".join(cells) + " |"
         )
+    lines += [
+        "",
+        "What the failed episodes ended against, summed over the runs (an episode against two kinds counts for both; "
+        "grids scored before this was recorded are left out):",
+        "",
+        "| grid | algorithm | test set | failed episodes | wall | box | cylinder | wall stub |",
+        "|---|---|---|---:|---:|---:|---:|---:|",
+    ]
+    for row in summary.dropna(subset=HITS).itertuples(index=False):
+        counts = " | ".join(str(int(getattr(row, hit))) for hit in HITS)
+        lines.append(f"| {row.grid} | {display_name(row.algo)} | {row.test_set} | {row.failed_episodes} | {counts} |")
+    held = ", ".join(f"{count} {kind}{'es' if kind == 'box' else 's'}" for kind, count in obstacles.items())
+    lines += ["", f"The 100 held-out layouts hold {held} (each run drives one episode per layout)."]
     return "\n".join(lines) + "\n"
 
 
@@ -188,7 +246,7 @@ def plot(summary: pd.DataFrame, path: Path) -> None:
 def main() -> None:
     summary = summarise(RESULTS_DIR)
     summary.to_csv(RESULTS_DIR / "summary.csv", index=False)
-    table = markdown(summary)
+    table = markdown(summary, held_out_obstacles())
     (RESULTS_DIR / "summary.md").write_text(table)
     FIGURE.parent.mkdir(parents=True, exist_ok=True)
     plot(summary, FIGURE)

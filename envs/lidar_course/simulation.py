@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -266,6 +267,10 @@ class CourseSimulation:
         return [int(hit[0]) for hit in self._hits]
 
     def _touches_wall(self, x: float, y: float) -> bool:
+        return next(self._touched_bodies(x, y), None) is not None
+
+    def _touched_bodies(self, x: float, y: float) -> Iterator[int]:
+        # The walls and obstacles the robot at (x, y) touches, lazily: the step's test stops at the first.
         radius = self.robot_radius
         aabb_min = self._aabb_min
         aabb_max = self._aabb_max
@@ -282,8 +287,27 @@ class CourseSimulation:
                 if first <= body <= last and pybullet.getClosestPoints(
                     self.robot_id, body, 0.0, linkIndexA=-1, physicsClientId=client
                 ):
-                    return True
-        return False
+                    yield body
+
+    def touching(self, x: float, y: float) -> list[str]:
+        """
+        What the robot, where the last :meth:`move_robot` or :meth:`drive_robot` left it at ``(x, y)``, touches:
+        one name per body, ``"wall"`` for a segment of the course's walls, else the obstacle's shape (``"box"``,
+        ``"cylinder"``, or ``"stub"`` for a wall stub). Empty without a collision. For diagnostics (which obstacles
+        a policy hits); the step itself only asks whether there is any.
+
+        :param x: The robot's position [m]
+        :param y: The robot's position [m]
+        """
+        first_obstacle = self.obstacle_ids[0] if self.obstacle_ids else None
+        names = []
+        for body in self._touched_bodies(x, y):
+            if first_obstacle is None or body < first_obstacle:
+                names.append("wall")
+            else:
+                shape = self.course.obstacles[body - first_obstacle].shape
+                names.append("stub" if shape == "wall" else shape)
+        return names
 
     def close(self) -> None:
         """Disconnect the physics client (safe to call more than once)."""

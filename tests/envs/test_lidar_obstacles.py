@@ -156,6 +156,35 @@ def test_the_lidar_sees_an_obstacle_and_driving_into_it_is_a_collision():
     env.close()
 
 
+@pytest.mark.parametrize("robot", ["kinematic", "wheeled"])
+def test_touching_names_what_the_robot_hits(robot):
+    # Along the bottom straight (walls at y = -1 and 1): a cylinder, a box and a wall stub, far apart.
+    course = course_from_dict(
+        loop_with(
+            {"shape": "cylinder", "position": [6, 0], "radius": 0.1},
+            {"shape": "box", "position": [9, 0], "size": [0.3, 0.3]},
+            {"shape": "wall", "position": [11.5, -0.6], "length": 0.8, "yaw_deg": 90},
+        )
+    )
+    env = LidarObstacleCourseEnv(course=course, robot=robot)
+    env.reset()
+    simulation, lidar = env.simulation, np.empty(env.n_rays)
+    # On the rim of each (robot radius 0.15), clear of them, and against the outer wall plus the stub.
+    for (x, y), touched in [
+        ((3.0, 0.0), []),
+        ((6.2, 0.0), ["cylinder"]),
+        ((9.25, 0.0), ["box"]),
+        ((11.5, -0.1), ["stub"]),
+        ((5.0, -0.9), ["wall"]),
+        ((11.5, -0.9), ["stub", "wall"]),
+    ]:
+        collided = simulation.move_robot(x, y, 0.0, lidar)
+        assert sorted(simulation.touching(x, y)) == touched, (x, y)
+        # The step's test agrees: a collision exactly where something is touched.
+        assert collided == bool(touched)
+    env.close()
+
+
 def test_the_same_course_without_the_obstacle_lets_the_robot_drive_on():
     env = LidarObstacleCourseEnv(course=course_from_dict(LOOP))
     obs, _ = env.reset()

@@ -5,16 +5,21 @@ jitter and reports one row per test set."""
 from __future__ import annotations
 
 import importlib
+import json
 import sys
 import textwrap
+from collections import Counter
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch as th
 from stable_baselines3 import TD3
 
 from sb3_adc.cli import main
 from sb3_adc.experiment.layout import RunLayout
+from sb3_adc_envs.lidar_course import LidarObstacleCourseEnv
+from sb3_adc_envs.lidar_course.course import course_from_dict
 
 ROOT = Path(__file__).resolve().parents[2]
 ENV_ID = "sb3_adc/LidarObstacleCourse-v1"
@@ -95,3 +100,50 @@ def test_budget_sweep_scores_a_checkpoint_and_names_configs_files(scripts, run_d
     assert procedural.repository_path(str(inside)) == "benchmarks/configs/budget_sweep/shaping.yml"
     outside = tmp_path / "configs.yml"
     assert procedural.repository_path(str(outside)) == str(outside.resolve())
+
+
+# A 14 m x 8 m rectangular loop 2 m wide; the robot starts at (3, 0) heading +x along the bottom straight.
+LOOP = {
+    "name": "loop",
+    "corridor": {"width": 2.0, "centerline": [[0, 0], [14, 0], [14, 8], [0, 8]], "corner_radius": 1.6},
+    "start": {"x": 3.0, "y": 0.0, "heading_deg": 0.0},
+}
+
+
+class Straight:
+    """A policy that never steers: on a curving course it ends against something."""
+
+    def predict(self, observation, deterministic=True):
+        return np.zeros(1, dtype=np.float32), None
+
+
+def test_scoring_counts_what_each_failed_episode_hit(scripts):
+    procedural, _ = scripts
+    rows, _ = procedural.score_policy(Straight(), lambda env: env, ENV_ID, {}, ["unseen_posts"], 2, 3, 0)
+    held_out, _ = rows
+    for row in rows:
+        failures = row["episodes"] - row["successes"]
+        hits = [row[f"hit_{kind}"] for kind in procedural.HITS]
+        # Every failure ended touching something; no kind is counted more often than there were failures.
+        assert sum(hits) >= failures > 0
+        assert max(hits) <= failures
+    assert held_out["hit_wall"] >= 1
+    # Straight ahead of the start: a post (6 cm radius) on a straight, then a box across the corridor's middle.
+    for obstacle, hit in [
+        ({"shape": "cylinder", "position": [6, 0], "radius": 0.06}, ["cylinder"]),
+        ({"shape": "box", "position": [6, 0], "size": [0.3, 0.3]}, ["box"]),
+    ]:
+        course = course_from_dict({**LOOP, "obstacles": [obstacle]})
+        env = LidarObstacleCourseEnv(course=course)
+        assert procedural.episode_outcome(Straight(), env) == (False, hit)
+        env.close()
+
+
+def test_an_invocation_that_only_scores_keeps_the_training_record(scripts, tmp_path):
+    procedural, _ = scripts
+    older = {"training_wall_time_s": 1078.3, "workers": 2, "runs_this_invocation": {"resumed": 2, "trained": 4}}
+    (tmp_path / "metadata.json").write_text(json.dumps(older))
+    record = procedural.training_record(tmp_path, Counter(skipped=6), 3.0, 1)
+    assert record == {"training_wall_time_s": 1078.3, "training_workers": 2, "training_runs": older["runs_this_invocation"]}
+    trained = procedural.training_record(tmp_path, Counter(trained=1, skipped=5), 3.04, 1)
+    assert trained == {"training_wall_time_s": 3.0, "training_workers": 1, "training_runs": {"skipped": 5, "trained": 1}}

@@ -7,6 +7,7 @@ import importlib
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -52,7 +53,7 @@ def test_committed_summary_is_that_of_every_committed_grid(summary_module, rebui
     committed = pd.read_csv(results / "summary.csv")
     pd.testing.assert_frame_equal(committed, rebuilt, check_dtype=False, atol=1e-9)
     assert set(committed["grid"]) >= {folder.name for folder in summary_module.grids(results)}
-    assert (results / "summary.md").read_text() == summary_module.markdown(rebuilt)
+    assert (results / "summary.md").read_text() == summary_module.markdown(rebuilt, summary_module.held_out_obstacles())
 
 
 def test_held_out_rows_are_the_grids_own_statistics_and_counts(summary_module, rebuilt):
@@ -67,3 +68,13 @@ def test_held_out_rows_are_the_grids_own_statistics_and_counts(summary_module, r
         success = success[success["test_set"] == "held-out layouts"]
         for algo, count in held_out["runs_at_target"].items():
             assert count == (success[success["algo"] == algo]["success_rate"] >= 0.9).sum()
+
+
+def test_failures_sum_the_hits_and_leave_unrecorded_grids_empty(summary_module):
+    hits = {"hit_wall": [2, 0], "hit_box": [0, 0], "hit_cylinder": [1, 0], "hit_stub": [1, 0]}
+    recorded = pd.DataFrame({"episodes": [10, 10], "successes": [7, 10], **hits})
+    expected = {"failed_episodes": 3, "hit_wall": 2, "hit_box": 0, "hit_cylinder": 1, "hit_stub": 1}
+    assert summary_module.failures(recorded) == expected
+    older = summary_module.failures(recorded[["episodes", "successes"]])
+    assert older["failed_episodes"] == 3
+    assert all(np.isnan(older[hit]) for hit in summary_module.HITS)
