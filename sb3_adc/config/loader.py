@@ -330,9 +330,27 @@ def load_hyperparams(
     path = find_hyperparams_file(conf_file) if conf_file is not None else packaged_hyperparams_file(algo)
     entry, source = select_entry(read_hyperparams_file(path), env_id, path)
     if overrides:
-        entry = {**entry, **overrides}
+        entry = apply_overrides(entry, overrides)
         source = f"{source} with command-line overrides of {', '.join(sorted(overrides))}"
     return resolve_entry(algo, env_id, entry, source, n_timesteps=n_timesteps)
+
+
+def apply_overrides(entry: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """
+    ``entry`` with the values of ``overrides`` (``-params``, a tuning trial's values, a benchmark's configuration).
+    The epsilon-gated noise's keys belong to ``noise_type: epsilon-normal``: an override that sets another noise
+    type drops the entry's (as the RL Zoo's ``-params noise_type:...`` replaces the noise), while epsilon keys the
+    overrides give themselves stay and are checked as usual.
+
+    :param entry: A hyperparameter entry
+    :param overrides: The values replacing the entry's
+    """
+    merged = {**entry, **overrides}
+    if "noise_type" in overrides and overrides["noise_type"] != "epsilon-normal":
+        for key in EPSILON_NOISE_KEYS:
+            if key not in overrides:
+                merged.pop(key, None)
+    return merged
 
 
 def resolve_entry(

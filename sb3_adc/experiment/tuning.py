@@ -52,6 +52,7 @@ from stable_baselines3.common.callbacks import EvalCallback
 from sb3_adc.common.atomic import write_atomically
 from sb3_adc.config import HyperparamsError, load_hyperparams
 from sb3_adc.config.loader import (
+    apply_overrides,
     find_hyperparams_file,
     packaged_hyperparams_file,
     read_hyperparams_file,
@@ -77,8 +78,6 @@ MAX_CHOICES = 32
 #: Longest episode of random actions with which ``objective="success"`` checks that the environment reports
 #: ``info["is_success"]`` before a study starts.
 SUCCESS_PROBE_MAX_STEPS = 10_000
-#: Keys of the epsilon-gated noise, dropped from an entry whose trial draws another noise type.
-_EPSILON_KEYS = ("epsilon_decay_steps", "epsilon_initial", "epsilon_final")
 _SHIPPED = "shipped"
 _WORKER = "worker"
 
@@ -420,7 +419,9 @@ def trial_entry(
     base: Mapping[str, Any], params: Mapping[str, Any], overrides: Mapping[str, Any], n_timesteps: int | None = None
 ) -> dict[str, Any]:
     """
-    The hyperparameter entry of a trial: the starting entry, the sampled values, then the fixed overrides.
+    The hyperparameter entry of a trial: the starting entry, the sampled values, then the fixed overrides, merged
+    as :func:`~sb3_adc.config.loader.apply_overrides` merges ``-params`` (a drawn noise type other than
+    ``epsilon-normal`` drops the starting entry's epsilon keys).
 
     :param base: The starting entry
     :param params: The sampled values
@@ -428,12 +429,9 @@ def trial_entry(
     :param n_timesteps: The study's training budget (``None``: the entry's), written into the entry so that the
         trial's file, and the best one, train with ``-conf`` for as long as the trial did
     """
-    entry = {**base, **params, **overrides}
+    entry = apply_overrides(base, {**params, **overrides})
     if n_timesteps is not None:
         entry["n_timesteps"] = n_timesteps
-    if entry.get("noise_type") != "epsilon-normal":
-        for key in _EPSILON_KEYS:
-            entry.pop(key, None)
     return entry
 
 

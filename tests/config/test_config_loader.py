@@ -305,3 +305,28 @@ def test_user_algorithms_can_be_added():
     assert config.model_kwargs["policy_delay"] == 3
     with pytest.raises(HyperparamsError, match="unknown algorithm 'my_td3'"):
         resolve_entry("my_td3", "Pendulum-v1", {"n_timesteps": 5, "policy": "MlpPolicy"}, SOURCE)
+
+
+def test_overriding_the_noise_type_drops_the_entrys_epsilon_keys(tmp_path):
+    """``-params noise_type:normal`` on an entry with epsilon-gated noise replaces the noise, as in the RL Zoo; the
+    epsilon keys belong to the noise replaced. Epsilon keys given with the override are still checked."""
+    path = write(
+        tmp_path,
+        """
+        Pendulum-v1:
+          n_timesteps: 1000
+          policy: MlpPolicy
+          noise_type: epsilon-normal
+          noise_std: 0.5
+          epsilon_decay_steps: 500
+          epsilon_final: 0.05
+        """,
+    )
+    config = load_hyperparams("ddpg", "Pendulum-v1", str(path), overrides={"noise_type": "normal", "noise_std": 0.1})
+    assert (config.noise.noise_type, config.noise.std, config.noise.epsilon_decay_steps) == ("normal", 0.1, 0)
+    assert "epsilon_decay_steps" not in config.saved
+    # Overrides of other keys keep the entry's noise whole.
+    kept = load_hyperparams("ddpg", "Pendulum-v1", str(path), overrides={"noise_std": 0.2})
+    assert (kept.noise.noise_type, kept.noise.epsilon_decay_steps, kept.noise.epsilon_final) == ("epsilon-normal", 500, 0.05)
+    with pytest.raises(HyperparamsError, match="`epsilon_final`: only accepted with"):
+        load_hyperparams("ddpg", "Pendulum-v1", str(path), overrides={"noise_type": "normal", "epsilon_final": 0.1})
