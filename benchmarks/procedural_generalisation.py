@@ -182,24 +182,36 @@ def load_for_scoring(
 
 def training_record(output: Path, statuses: Counter[str], seconds: float, workers: int) -> dict[str, Any]:
     """
-    The training facts to record in ``output/metadata.json`` (``training_wall_time_s``, ``training_workers`` and
-    ``training_runs``, the runs trained, resumed or found finished): this invocation's, or, when every run was
-    finished before (an invocation that only scores), those of the invocation that trained them.
+    The training facts to record in ``output/metadata.json``: ``training_invocations``, one entry per invocation
+    that trained or resumed runs of the grid (``wall_time_s``, ``workers`` and ``runs``: how many runs it trained,
+    resumed or found finished), ``training_wall_time_s``, their total, and ``training_workers``, the last one's.
+
+    An invocation that only scores (every run finished before) keeps the earlier record; one that trains some runs
+    and finds others finished adds itself to it (an algorithm added to a ``--configs`` file); one that finds none
+    finished starts it anew.
     """
-    this = {
-        "training_wall_time_s": round(seconds, 1),
-        "training_workers": workers,
-        "training_runs": dict(sorted(statuses.items())),
-    }
+    this = {"wall_time_s": round(seconds, 1), "workers": workers, "runs": dict(sorted(statuses.items()))}
     previous = output / "metadata.json"
-    if statuses["trained"] + statuses["resumed"] or not previous.exists():
-        return this
-    earlier = json.loads(previous.read_text())
-    # Older metadata: the invocation's workers and run counts were its training's.
+    earlier = json.loads(previous.read_text()) if previous.exists() else {}
+    history = earlier.get("training_invocations")
+    if history is None and "training_wall_time_s" in earlier:
+        # Metadata written before the record was kept per invocation: one invocation.
+        runs = earlier.get("training_runs", earlier.get("runs_this_invocation", {}))
+        history = [
+            {
+                "wall_time_s": earlier["training_wall_time_s"],
+                "workers": earlier.get("training_workers", earlier.get("workers", workers)),
+                "runs": runs,
+            }
+        ]
+    if statuses["trained"] + statuses["resumed"]:
+        history = [*((history or []) if statuses["skipped"] else []), this]
+    elif not history:
+        history = [this]
     return {
-        "training_wall_time_s": earlier.get("training_wall_time_s", this["training_wall_time_s"]),
-        "training_workers": earlier.get("training_workers", earlier.get("workers", workers)),
-        "training_runs": earlier.get("training_runs", earlier.get("runs_this_invocation", this["training_runs"])),
+        "training_wall_time_s": round(sum(invocation["wall_time_s"] for invocation in history), 1),
+        "training_workers": history[-1]["workers"],
+        "training_invocations": history,
     }
 
 

@@ -139,11 +139,31 @@ def test_scoring_counts_what_each_failed_episode_hit(scripts):
         env.close()
 
 
-def test_an_invocation_that_only_scores_keeps_the_training_record(scripts, tmp_path):
+def test_the_training_record_follows_the_invocations_that_trained(scripts, tmp_path):
     procedural, _ = scripts
+    metadata = tmp_path / "metadata.json"
+    # Metadata of the former layout: one invocation, its run counts as runs_this_invocation.
     older = {"training_wall_time_s": 1078.3, "workers": 2, "runs_this_invocation": {"resumed": 2, "trained": 4}}
-    (tmp_path / "metadata.json").write_text(json.dumps(older))
-    record = procedural.training_record(tmp_path, Counter(skipped=6), 3.0, 1)
-    assert record == {"training_wall_time_s": 1078.3, "training_workers": 2, "training_runs": older["runs_this_invocation"]}
-    trained = procedural.training_record(tmp_path, Counter(trained=1, skipped=5), 3.04, 1)
-    assert trained == {"training_wall_time_s": 3.0, "training_workers": 1, "training_runs": {"skipped": 5, "trained": 1}}
+    metadata.write_text(json.dumps(older))
+    first = {"wall_time_s": 1078.3, "workers": 2, "runs": {"resumed": 2, "trained": 4}}
+    # Scoring only: the earlier record stays.
+    scored = procedural.training_record(tmp_path, Counter(skipped=6), 3.0, 1)
+    assert scored == {"training_wall_time_s": 1078.3, "training_workers": 2, "training_invocations": [first]}
+    # Training more runs beside finished ones (an algorithm added): added to the record.
+    metadata.write_text(json.dumps(scored))
+    added = procedural.training_record(tmp_path, Counter(trained=10, skipped=10), 500.04, 2)
+    second = {"wall_time_s": 500.0, "workers": 2, "runs": {"skipped": 10, "trained": 10}}
+    assert added == {"training_wall_time_s": 1578.3, "training_workers": 2, "training_invocations": [first, second]}
+    # Training every run anew: a new record.
+    metadata.write_text(json.dumps(added))
+    anew = procedural.training_record(tmp_path, Counter(trained=20), 7.0, 1)
+    assert anew == {
+        "training_wall_time_s": 7.0,
+        "training_workers": 1,
+        "training_invocations": [{"wall_time_s": 7.0, "workers": 1, "runs": {"trained": 20}}],
+    }
+    # No metadata yet: this invocation.
+    metadata.unlink()
+    assert procedural.training_record(tmp_path, Counter(skipped=3), 2.0, 1)["training_invocations"] == [
+        {"wall_time_s": 2.0, "workers": 1, "runs": {"skipped": 3}}
+    ]
