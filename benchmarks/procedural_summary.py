@@ -31,24 +31,22 @@ matplotlib.use("Agg")
 import gymnasium as gym
 import matplotlib.pyplot as plt
 import pandas as pd
+from procedural_generalisation import ALGOS, DOCS_STATIC, HELD_OUT, RESULTS_DIR
+from procedural_generalisation import HITS as HIT_KINDS
 
 from sb3_adc.experiment.plots import algo_colors, display_name
 from sb3_adc.experiment.statistics import FINAL_PERFORMANCE_COLUMNS, final_performance
 from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS
 
-ROOT = Path(__file__).resolve().parent
-RESULTS_DIR = ROOT / "results" / "procedural_generalisation"
-FIGURE = ROOT.parent / "docs" / "_static" / "benchmarks" / "procedural_summary.png"
-ALGOS = ["adc", "ddpg", "td3", "sac"]
-HELD_OUT = "held-out layouts"
+FIGURE = DOCS_STATIC / "procedural_summary.png"
 COURSE_FILES = "unseen course files"
 #: What issue 9 asks of the shipped ADC entry on both test sets.
 TARGET = 0.9
 #: The statistics' columns (``env`` becomes the test set) between the grid's facts and the runs at the target.
 STATISTICS = [column for column in FINAL_PERFORMANCE_COLUMNS if column not in ("env", "algo", "n_runs")]
-#: What failed episodes hit (``procedural_generalisation.HITS``), summed over the runs; empty for grids scored
-#: before the scoring recorded it.
-HITS = ["hit_wall", "hit_box", "hit_cylinder", "hit_stub"]
+#: What failed episodes hit (``success.csv``'s columns), summed over the runs; empty for grids scored before the
+#: scoring recorded it.
+HITS = [f"hit_{kind}" for kind in HIT_KINDS]
 COLUMNS = [
     "grid",
     "env",
