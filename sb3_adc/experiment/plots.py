@@ -86,7 +86,11 @@ def display_name(algo: str) -> str:
 
 
 def algo_colors(algos: list[str]) -> dict[str, tuple[float, float, float, float]]:
-    """The same color for an algorithm in every figure."""
+    """
+    One color per algorithm, from the sorted names: the same for an algorithm in every figure of the same set.
+
+    :param algos: The algorithms of the figure
+    """
     cmap = colormaps["tab10"]
     return {str(algo): cmap(index % 10) for index, algo in enumerate(sorted(algos))}
 
