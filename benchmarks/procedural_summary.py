@@ -28,10 +28,9 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import gymnasium as gym
 import matplotlib.pyplot as plt
 import pandas as pd
-from procedural_generalisation import ALGOS, DOCS_STATIC, HELD_OUT, RESULTS_DIR
+from procedural_generalisation import ALGOS, DOCS_STATIC, HELD_OUT, RESULTS_DIR, held_out_courses
 from procedural_generalisation import HITS as HIT_KINDS
 
 from sb3_adc.experiment.plots import algo_colors, display_name
@@ -152,13 +151,10 @@ def planner_rows(results: Path) -> pd.DataFrame:
 
 def held_out_obstacles(env_id: str = "sb3_adc/LidarObstacleCourse-v1", n_layouts: int = 100) -> dict[str, int]:
     """How many obstacles of each kind the first ``n_layouts`` held-out layouts hold together (the kinematic robot's)."""
-    env = gym.make(env_id, layout_seeds=TEST_LAYOUT_SEEDS)
     counts = dict.fromkeys(["box", "cylinder", "stub"], 0)
-    for k in range(n_layouts):
-        env.reset(options={"layout_seed": TEST_LAYOUT_SEEDS[0] + k})
-        for obstacle in env.unwrapped.course.obstacles:  # type: ignore[attr-defined]
+    for course in held_out_courses(env_id, {}, [TEST_LAYOUT_SEEDS[0] + k for k in range(n_layouts)]).values():
+        for obstacle in course.obstacles:
             counts["stub" if obstacle.shape == "wall" else obstacle.shape] += 1
-    env.close()
     return counts
 
 
