@@ -20,12 +20,16 @@ Differences from the RL Zoo, each for a reason:
   Optuna's samplers take a space defined by the objective; the RL Zoo's is fixed in its code.
 - ``--n-jobs`` runs worker processes (not threads, which share one interpreter lock) on one study, and the
   study lives in a journal file by default, so a study interrupted at any point resumes where it stopped and
-  several machines can share a study through ``--storage``. The budget is exactly ``n_trials`` finished trials
-  whatever the number of workers: equal budgets are what make a comparison of tuned algorithms fair.
+  several machines can share a study through ``--storage``. A trial cut short (its worker killed, or Ctrl-C) is
+  continued by a new trial with the same hyperparameters that keeps its runs: finished seeds are not trained again
+  and an unfinished one resumes from its latest checkpoint (taken at every evaluation), its earlier evaluations
+  carried over to the pruner. The RL Zoo starts such a trial afresh with new values; its work would be lost. The
+  budget is exactly ``n_trials`` finished trials whatever the number of workers: equal budgets are what make a
+  comparison of tuned algorithms fair.
 
 Files, under ``{log_folder}/tuning/{study_name}/``: ``study.log`` (the Optuna journal), ``trial_N/hyperparams.yml``
-and ``trial_N/seed_S/`` (an ordinary run folder), ``trials.csv`` and ``best_hyperparams.yml`` (usable with
-``-conf``).
+and ``trial_N/seed_S/`` (an ordinary run folder; a trial that continues another uses that trial's folder),
+``trials.csv`` and ``best_hyperparams.yml`` (usable with ``-conf``).
 """
 
 from __future__ import annotations
@@ -61,10 +65,12 @@ from sb3_adc.config.loader import (
 )
 from sb3_adc.experiment.divergence import TrainingDiverged
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
-from sb3_adc.experiment.layout import env_name
+from sb3_adc.experiment.evaluation import FinalEvaluation
+from sb3_adc.experiment.layout import RunLayout, env_name
+from sb3_adc.experiment.manager import RunInterrupted
 from sb3_adc.experiment.samplers import SAMPLERS, Space, sample
 from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings, check_env_kwargs
-from sb3_adc.experiment.training import train
+from sb3_adc.experiment.training import resume, train
 
 #: ``--sampler`` choices.
 SAMPLER_NAMES = ("tpe", "random")
@@ -80,6 +86,11 @@ MAX_CHOICES = 32
 SUCCESS_PROBE_MAX_STEPS = 10_000
 _SHIPPED = "shipped"
 _WORKER = "worker"
+#: User attributes: the trial's folder (relative to the study's), the trial a continuation continues, and a
+#: trial stopped by Ctrl-C.
+_TRIAL_DIR = "trial_dir"
+_CONTINUES = "continues"
+_INTERRUPTED = "interrupted"
 
 
 @dataclass
@@ -255,6 +266,7 @@ def tune(settings: TuneSettings) -> TuneResult:
     os.makedirs(settings.study_dir, exist_ok=True)
     study = _open_study(settings, worker=0)
     _fail_dead_trials(study)
+    _continue_interrupted(study)
     if not any(trial.user_attrs.get(_SHIPPED) and trial.state != TrialState.FAIL for trial in study.trials):
         study.enqueue_trial({}, user_attrs={_SHIPPED: True})
     remaining = settings.n_trials - len(_finished(study)) - _count(study, TrialState.RUNNING)
@@ -303,47 +315,114 @@ def _objective(trial: optuna.Trial, settings: TuneSettings, base: dict[str, Any]
     if not shipped:
         params = sample(settings.algo, Space(trial, {**base, **settings.overrides}, settings.overrides, settings.search_space))
     entry = trial_entry(base, params, settings.overrides, settings.n_timesteps)
-    trial_dir = os.path.join(settings.study_dir, f"trial_{trial.number}")
+    earlier, folder = _continued_trial(trial, settings, entry)
+    trial_dir = os.path.join(settings.study_dir, folder)
     os.makedirs(trial_dir, exist_ok=True)
+    trial.set_user_attr(_TRIAL_DIR, folder)
     hyperparams_file = os.path.join(trial_dir, "hyperparams.yml")
-    _write_entry(hyperparams_file, settings.env_id, entry, f"trial {trial.number} of study {settings.name}")
+    if earlier is None:
+        _write_entry(hyperparams_file, settings.env_id, entry, f"trial {trial.number} of study {settings.name}")
     trial.set_user_attr("hyperparams", hyperparams_file)
     values = []
-    for index, seed in enumerate(settings.seeds):
-        callback = TrialEvalCallback(trial, settings, hyperparams_file, seed, step_offset=index * settings.n_evaluations)
-        run_settings = TrainSettings(
-            algo=settings.algo,
-            env_id=settings.env_id,
-            seed=seed,
-            conf_file=hyperparams_file,
-            env_kwargs=dict(settings.env_kwargs),
-            eval_env_kwargs=dict(settings.eval_env_kwargs),
-            n_timesteps=settings.n_timesteps,
-            log_folder=settings.log_folder,
-            run_dir=os.path.join(trial_dir, f"seed_{seed}"),
-            eval_freq=-1,
-            save_freq=-1,
-            final_eval_episodes=settings.final_eval_episodes,
-            device=settings.device,
-            verbose=settings.verbose,
-            progress_bar=False,
-        )
-        try:
-            result = train(run_settings, callbacks=[callback])
-        except TrainingDiverged as error:
-            # Sampled values that make training diverge (NaN or inf): a bad trial, not an error of the study.
-            raise optuna.TrialPruned(f"seed {seed}: {error}") from None
-        if callback.is_pruned:
-            raise optuna.TrialPruned(f"pruned at evaluation {callback.n_reports} of seed {seed}")
-        final = result.final_evaluation
-        trial.set_user_attr(f"return_seed_{seed}", final.mean_return)
-        if settings.objective == "success":
-            trial.set_user_attr(f"success_seed_{seed}", final.success_rate)
-        values.append(objective_value(settings, final.mean_return, final.success_rate))
+    try:
+        for index, seed in enumerate(settings.seeds):
+            final = _run_seed(trial, settings, hyperparams_file, trial_dir, index, seed, earlier)
+            trial.set_user_attr(f"return_seed_{seed}", final.mean_return)
+            if settings.objective == "success":
+                trial.set_user_attr(f"success_seed_{seed}", final.success_rate)
+            values.append(objective_value(settings, final.mean_return, final.success_rate))
+    except RunInterrupted:
+        trial.set_user_attr(_INTERRUPTED, True)  # the next invocation continues it (_continue_interrupted)
+        raise
     value = float(np.mean(values))
     if not math.isfinite(value):
         raise optuna.TrialPruned(f"non-finite return {value}")
     return value
+
+
+def _run_seed(
+    trial: optuna.Trial,
+    settings: TuneSettings,
+    hyperparams_file: str,
+    trial_dir: str,
+    index: int,
+    seed: int,
+    earlier: Mapping[int, float] | None,
+) -> FinalEvaluation:
+    """Train (or, in a continued trial, resume or reuse) the run of one seed; its final evaluation."""
+    run_dir = os.path.join(trial_dir, f"seed_{seed}")
+    layout = RunLayout(run_dir, settings.env_id)
+    first = index * settings.n_evaluations
+    if earlier is not None and layout.is_finished():
+        result = resume(run_dir)
+        _carry_reports(trial, earlier, first, first + settings.n_evaluations)
+        return result.final_evaluation
+    callback = TrialEvalCallback(trial, settings, hyperparams_file, seed, step_offset=first, earlier=earlier)
+    try:
+        if earlier is not None and os.path.isdir(layout.params_dir):
+            result = resume(run_dir, callbacks=[callback])
+        else:
+            run_settings = TrainSettings(
+                algo=settings.algo,
+                env_id=settings.env_id,
+                seed=seed,
+                conf_file=hyperparams_file,
+                env_kwargs=dict(settings.env_kwargs),
+                eval_env_kwargs=dict(settings.eval_env_kwargs),
+                n_timesteps=settings.n_timesteps,
+                log_folder=settings.log_folder,
+                run_dir=run_dir,
+                eval_freq=-1,
+                # A checkpoint at every evaluation of the trial: a continued trial resumes the run from there.
+                save_freq=callback.interval,
+                keep_checkpoints=1,
+                final_eval_episodes=settings.final_eval_episodes,
+                device=settings.device,
+                verbose=settings.verbose,
+                progress_bar=False,
+            )
+            result = train(run_settings, callbacks=[callback])
+    except TrainingDiverged as error:
+        # Sampled values that make training diverge (NaN or inf): a bad trial, not an error of the study.
+        raise optuna.TrialPruned(f"seed {seed}: {error}") from None
+    if callback.is_pruned:
+        raise optuna.TrialPruned(f"pruned at evaluation {callback.n_reports} of seed {seed}")
+    # A trial's runs are never trained further: once one has finished, its checkpoints (a replay buffer each)
+    # are only disk space. Its final model and evaluation stay, which is what a continued trial reuses.
+    for checkpoint in layout.checkpoints():
+        for path in (checkpoint.model, checkpoint.replay_buffer, checkpoint.vecnormalize):
+            if os.path.exists(path):
+                os.remove(path)
+    return result.final_evaluation
+
+
+def _continued_trial(
+    trial: optuna.Trial, settings: TuneSettings, entry: Mapping[str, Any]
+) -> tuple[dict[int, float] | None, str]:
+    """
+    For a trial that continues an interrupted one with the same entry: that trial's reported evaluations and its
+    folder; otherwise ``None`` and the trial's own folder (a changed starting entry or ``-params`` start afresh).
+    """
+    own = f"trial_{trial.number}"
+    number = trial.user_attrs.get(_CONTINUES)
+    if number is None:
+        return None, own
+    (previous,) = [other for other in trial.study.get_trials(deepcopy=False) if other.number == number]
+    folder = str(previous.user_attrs.get(_TRIAL_DIR, f"trial_{previous.number}"))
+    path = os.path.join(settings.study_dir, folder, "hyperparams.yml")
+    written = read_yaml_file(path).get(settings.env_id) if os.path.isfile(path) else None
+    if written != yaml.safe_load(yaml.safe_dump(dict(entry))):
+        print(f"Trial {trial.number}: the entry of trial {number} changed since it ran; its runs are not reused")
+        return None, own
+    print(f"Trial {trial.number} continues trial {number} in {folder}")
+    return dict(previous.intermediate_values), folder
+
+
+def _carry_reports(trial: optuna.Trial, earlier: Mapping[int, float], first: int, stop: int) -> None:
+    """Report again to ``trial`` the values an interrupted trial reported at steps ``first`` to ``stop - 1``."""
+    for step in range(first, stop):
+        if step in earlier:
+            trial.report(earlier[step], step)
 
 
 def objective_value(settings: TuneSettings, mean_return: float, success_rate: float | None) -> float:
@@ -447,9 +526,19 @@ class TrialEvalCallback(EvalCallback):
     :param hyperparams_file: The trial's hyperparameter file
     :param seed: The run's seed
     :param step_offset: Report step of this run's first evaluation
+    :param earlier: The evaluations an interrupted trial reported (by step), carried over for the part of a
+        resumed run that its checkpoint covers
     """
 
-    def __init__(self, trial: optuna.Trial, settings: TuneSettings, hyperparams_file: str, seed: int, step_offset: int):
+    def __init__(
+        self,
+        trial: optuna.Trial,
+        settings: TuneSettings,
+        hyperparams_file: str,
+        seed: int,
+        step_offset: int,
+        earlier: Mapping[int, float] | None = None,
+    ):
         config = load_hyperparams(settings.algo, settings.env_id, hyperparams_file, n_timesteps=settings.n_timesteps)
         config.env_kwargs = settings.evaluation_env_kwargs(config.env_kwargs)
         eval_env = wrap_vec_env(config, make_run_envs(config, 1, seed + EVAL_SEED_OFFSET), training=False)
@@ -463,8 +552,18 @@ class TrialEvalCallback(EvalCallback):
         self.trial = trial
         self.settings = settings
         self.step_offset = step_offset
+        self.earlier = dict(earlier or {})
+        #: Timesteps between evaluations (and the run's checkpoints)
+        self.interval = self.eval_freq * config.n_envs
         self.n_reports = 0
         self.is_pruned = False
+
+    def _on_training_start(self) -> None:
+        # A resumed run: count calls as an uninterrupted run would, so that it evaluates at the same timesteps, and
+        # carry over the evaluations before its checkpoint (they are not redone).
+        self.n_calls = self.model.num_timesteps // self.model.n_envs
+        self.n_reports = min(self.model.num_timesteps // self.interval, self.settings.n_evaluations)
+        _carry_reports(self.trial, self.earlier, self.step_offset, self.step_offset + self.n_reports)
 
     def _on_step(self) -> bool:
         if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
@@ -533,8 +632,24 @@ def _fail_dead_trials(study: optuna.Study) -> None:
         worker = str(trial.user_attrs.get(_WORKER, ""))
         name, _, pid = worker.rpartition(":")
         if name == host and pid.isdigit() and not _alive(int(pid)):
+            study._storage.set_trial_user_attr(trial._trial_id, _INTERRUPTED, True)
             study._storage.set_trial_state_values(trial._trial_id, TrialState.FAIL)
-            print(f"Trial {trial.number} was interrupted (its worker {worker} is gone): marked failed, it runs again")
+            print(f"Trial {trial.number} was interrupted (its worker {worker} is gone): failed, a new trial continues it")
+
+
+def _continue_interrupted(study: optuna.Study) -> None:
+    """
+    Queue, for each interrupted trial (a failed one whose worker is gone or that Ctrl-C stopped) not yet continued,
+    a trial with its hyperparameters that continues its runs (see :func:`_continued_trial`).
+    """
+    trials = study.get_trials(deepcopy=False)
+    continued = {trial.user_attrs.get(_CONTINUES) for trial in trials}
+    for trial in trials:
+        if trial.state == TrialState.FAIL and trial.user_attrs.get(_INTERRUPTED) and trial.number not in continued:
+            attrs: dict[str, Any] = {_CONTINUES: trial.number}
+            if trial.user_attrs.get(_SHIPPED):
+                attrs[_SHIPPED] = True
+            study.enqueue_trial(dict(trial.params), user_attrs=attrs, skip_if_exists=False)
 
 
 def _alive(pid: int) -> bool:
@@ -570,6 +685,7 @@ def _report(settings: TuneSettings, study: optuna.Study) -> TuneResult:
                 "state": trial.state.name,
                 "value": "" if trial.value is None else round(trial.value, 3),
                 "shipped": bool(trial.user_attrs.get(_SHIPPED)),
+                "continues": trial.user_attrs.get(_CONTINUES, ""),
                 "duration_s": "" if trial.duration is None else round(trial.duration.total_seconds(), 1),
                 **{f"return_seed_{seed}": trial.user_attrs.get(f"return_seed_{seed}", "") for seed in settings.seeds},
                 **{

@@ -10,6 +10,8 @@ import pytest
 
 from sb3_adc.config import resolve_entry
 from sb3_adc.config.loader import packaged_hyperparams_file, read_hyperparams_file, select_entry
+from sb3_adc.experiment import tuning
+from sb3_adc.experiment.manager import RunInterrupted
 from sb3_adc.experiment.samplers import SAMPLERS, Space
 from sb3_adc.experiment.tuning import TuneSettings, trial_entry, tune
 
@@ -52,8 +54,8 @@ def test_epsilon_keys_dropped_with_another_noise():
     assert entry == {"noise_type": "normal", "gamma": 0.9}
 
 
-def test_interrupted_trial_is_failed_and_replaced(tmp_path):
-    """A trial left running by a killed worker of this machine is marked failed; the budget is still met."""
+def test_trial_of_a_dead_worker_is_failed_and_continued(tmp_path):
+    """A trial left running by a killed worker of this machine is marked failed and continued; the budget is met."""
     settings = TuneSettings(
         algo="ddpg",
         env_id="Pendulum-v1",
@@ -70,14 +72,111 @@ def test_interrupted_trial_is_failed_and_replaced(tmp_path):
     storage = optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(settings.storage_url()))
     study = optuna.create_study(storage=storage, study_name=settings.name, direction="maximize")
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True, check=True)
-    stale = study.ask()
-
+    stale = study.ask({"gamma": optuna.distributions.CategoricalDistribution([0.9, 0.95, 0.98, 0.99])})
     stale.set_user_attr("worker", f"{socket.gethostname()}:{dead.stdout.strip()}")
     result = tune(settings)
-    states = [trial.state for trial in optuna.load_study(study_name=settings.name, storage=storage).trials]
-    assert states[0] == optuna.trial.TrialState.FAIL
-    assert states.count(optuna.trial.TrialState.COMPLETE) + states.count(optuna.trial.TrialState.PRUNED) == 2
+    trials = optuna.load_study(study_name=settings.name, storage=storage).trials
+    assert trials[0].state == optuna.trial.TrialState.FAIL
+    assert [trial.state for trial in trials[1:]].count(optuna.trial.TrialState.FAIL) == 0
     assert result.n_finished == 2
+    (continuation,) = [trial for trial in trials if trial.user_attrs.get("continues") == 0]
+    assert continuation.params["gamma"] == trials[0].params["gamma"]
+    # The stale trial left no runs: the continuation trains in its own folder.
+    assert continuation.user_attrs["trial_dir"] == f"trial_{continuation.number}"
+
+
+def test_interrupted_trial_keeps_its_runs(tmp_path, monkeypatch, capsys):
+    """
+    Fault injection: Ctrl-C during the second seed of a trial. The next invocation continues the trial with the same
+    hyperparameters: the finished seed is not trained again, the other resumes from its checkpoint, and the pruner
+    sees every evaluation once.
+    """
+    settings = TuneSettings(
+        algo="ddpg",
+        env_id="Pendulum-v1",
+        n_trials=1,
+        n_timesteps=200,
+        seeds=(0, 1),
+        n_evaluations=2,
+        eval_episodes=1,
+        final_eval_episodes=1,
+        pruner="none",
+        log_folder=str(tmp_path),
+        overrides={"learning_starts": 100, "policy_kwargs": {"net_arch": [4]}, "batch_size": 8},
+        device="cpu",
+    )
+    on_step = tuning.TrialEvalCallback._on_step
+
+    def interrupt_second_seed(callback):
+        if callback.step_offset == 2 and callback.num_timesteps == 150:
+            raise KeyboardInterrupt
+        return on_step(callback)
+
+    monkeypatch.setattr(tuning.TrialEvalCallback, "_on_step", interrupt_second_seed)
+    with pytest.raises(RunInterrupted):
+        tune(settings)
+    monkeypatch.setattr(tuning.TrialEvalCallback, "_on_step", on_step)
+    trial_dir = tmp_path / "tuning" / settings.name / "trial_0"
+    first_seed = trial_dir / "seed_0" / "Pendulum-v1.zip"
+    trained_at = first_seed.stat().st_mtime_ns
+    storage = optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(settings.storage_url()))
+    (interrupted,) = optuna.load_study(study_name=settings.name, storage=storage).trials
+    assert interrupted.state == optuna.trial.TrialState.FAIL
+    assert sorted(interrupted.intermediate_values) == [0, 1, 2]
+    capsys.readouterr()
+
+    result = tune(settings)
+    output = capsys.readouterr().out
+    assert result.n_finished == 1
+    _, continuation = optuna.load_study(study_name=settings.name, storage=storage).trials
+    assert continuation.state == optuna.trial.TrialState.COMPLETE
+    assert continuation.user_attrs["continues"] == 0
+    assert continuation.user_attrs["trial_dir"] == "trial_0"
+    assert continuation.user_attrs["shipped"]
+    assert first_seed.stat().st_mtime_ns == trained_at
+    assert "Training ddpg on Pendulum-v1 (seed 0" not in output
+    assert f"Resuming {trial_dir / 'seed_1'} from timestep 150 of 200" in output
+    assert sorted(continuation.intermediate_values) == [0, 1, 2, 3]
+    assert {step: continuation.intermediate_values[step] for step in (0, 1, 2)} == interrupted.intermediate_values
+    assert continuation.value == pytest.approx(
+        (continuation.user_attrs["return_seed_0"] + continuation.user_attrs["return_seed_1"]) / 2
+    )
+    assert not list((trial_dir / "seed_1").glob("rl_model_*")), "a finished trial's checkpoints are removed"
+
+
+def test_continuation_with_a_changed_entry_starts_afresh(tmp_path, monkeypatch):
+    """Runs of an interrupted trial are reused only for the same entry: new -params make the continuation retrain."""
+    settings = TuneSettings(
+        algo="ddpg",
+        env_id="Pendulum-v1",
+        n_trials=1,
+        n_timesteps=100,
+        n_evaluations=1,
+        eval_episodes=1,
+        final_eval_episodes=1,
+        pruner="none",
+        log_folder=str(tmp_path),
+        overrides={"learning_starts": 50, "policy_kwargs": {"net_arch": [4]}, "batch_size": 8},
+        device="cpu",
+    )
+    on_step = tuning.TrialEvalCallback._on_step
+
+    def interrupt(callback):
+        if callback.num_timesteps == 60:
+            raise KeyboardInterrupt
+        return on_step(callback)
+
+    monkeypatch.setattr(tuning.TrialEvalCallback, "_on_step", interrupt)
+    with pytest.raises(RunInterrupted):
+        tune(settings)
+    monkeypatch.setattr(tuning.TrialEvalCallback, "_on_step", on_step)
+    settings.overrides["batch_size"] = 16
+    tune(settings)
+    storage = optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(settings.storage_url()))
+    _, continuation = optuna.load_study(study_name=settings.name, storage=storage).trials
+    assert continuation.user_attrs["continues"] == 0
+    assert continuation.user_attrs["trial_dir"] == "trial_1"
+    assert continuation.state == optuna.trial.TrialState.COMPLETE
 
 
 def test_reports_every_evaluation_of_every_seed(tmp_path):
