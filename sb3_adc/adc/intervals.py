@@ -46,11 +46,7 @@ def check_n_intervals(n_intervals: object) -> None:
 
     :param n_intervals: Number of uniform intervals per action dimension
     """
-    if (
-        isinstance(n_intervals, bool)
-        or not isinstance(n_intervals, int)
-        or not 2 <= n_intervals <= MAX_N_INTERVALS
-    ):
+    if isinstance(n_intervals, bool) or not isinstance(n_intervals, int) or not 2 <= n_intervals <= MAX_N_INTERVALS:
         raise ValueError(
             f"`n_intervals` must be an integer >= 2 (one advantage per interval) and <= {MAX_N_INTERVALS} "
             f"(MAX_N_INTERVALS), got {n_intervals!r}."

@@ -114,9 +114,7 @@ class _HyperparamsYamlLoader(yaml.SafeLoader):
             if not isinstance(key, Hashable):
                 continue  # SafeLoader reports unhashable keys
             if key in seen:
-                raise yaml.constructor.ConstructorError(
-                    None, None, f"duplicate key {short_repr(key)}", key_node.start_mark
-                )
+                raise yaml.constructor.ConstructorError(None, None, f"duplicate key {short_repr(key)}", key_node.start_mark)
             seen.add(key)
         return super().construct_mapping(node, deep=deep)
 
