@@ -16,6 +16,44 @@ from sb3_adc.experiment.samplers import SAMPLERS, Space
 from sb3_adc.experiment.tuning import TuneSettings, trial_entry, tune
 
 
+def tiny_study(tmp_path, **changes) -> TuneSettings:
+    """A study of DDPG on Pendulum with tiny networks and budgets: one trial of two seeds of 200 steps."""
+    settings = {
+        "algo": "ddpg",
+        "env_id": "Pendulum-v1",
+        "n_trials": 1,
+        "n_timesteps": 200,
+        "seeds": (0, 1),
+        "n_evaluations": 2,
+        "eval_episodes": 1,
+        "final_eval_episodes": 1,
+        "pruner": "none",
+        "log_folder": str(tmp_path),
+        "overrides": {"learning_starts": 100, "policy_kwargs": {"net_arch": [4]}, "batch_size": 8},
+        "device": "cpu",
+    }
+    return TuneSettings(**{**settings, **changes})
+
+
+def journal(settings: TuneSettings) -> optuna.storages.JournalStorage:
+    return optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(settings.storage_url()))
+
+
+def tune_interrupted(settings: TuneSettings, monkeypatch, when) -> None:
+    """Fault injection: tune until a trial's evaluation callback, at a step where ``when(callback)``, gets Ctrl-C."""
+    on_step = tuning.TrialEvalCallback._on_step
+
+    def interrupt(callback):
+        if when(callback):
+            raise KeyboardInterrupt
+        return on_step(callback)
+
+    monkeypatch.setattr(tuning.TrialEvalCallback, "_on_step", interrupt)
+    with pytest.raises(RunInterrupted):
+        tune(settings)
+    monkeypatch.setattr(tuning.TrialEvalCallback, "_on_step", on_step)
+
+
 @pytest.mark.parametrize("algo", sorted(SAMPLERS))
 def test_every_sampled_entry_is_valid(algo):
     """Whatever a sampler draws, the entry it makes passes the same validation as a hyperparameter file."""
@@ -56,20 +94,9 @@ def test_epsilon_keys_dropped_with_another_noise():
 
 def test_trial_of_a_dead_worker_is_failed_and_continued(tmp_path):
     """A trial left running by a killed worker of this machine is marked failed and continued; the budget is met."""
-    settings = TuneSettings(
-        algo="ddpg",
-        env_id="Pendulum-v1",
-        n_trials=2,
-        n_timesteps=200,
-        n_evaluations=1,
-        eval_episodes=1,
-        final_eval_episodes=1,
-        log_folder=str(tmp_path),
-        overrides={"learning_starts": 100, "policy_kwargs": {"net_arch": [4]}, "batch_size": 8},
-        device="cpu",
-    )
+    settings = tiny_study(tmp_path, n_trials=2, seeds=(0,), n_evaluations=1, pruner="median")
     os.makedirs(settings.study_dir)
-    storage = optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(settings.storage_url()))
+    storage = journal(settings)
     study = optuna.create_study(storage=storage, study_name=settings.name, direction="maximize")
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True, check=True)
     stale = study.ask({"gamma": optuna.distributions.CategoricalDistribution([0.9, 0.95, 0.98, 0.99])})
@@ -91,35 +118,12 @@ def test_interrupted_trial_keeps_its_runs(tmp_path, monkeypatch, capsys):
     hyperparameters: the finished seed is not trained again, the other resumes from its checkpoint, and the pruner
     sees every evaluation once.
     """
-    settings = TuneSettings(
-        algo="ddpg",
-        env_id="Pendulum-v1",
-        n_trials=1,
-        n_timesteps=200,
-        seeds=(0, 1),
-        n_evaluations=2,
-        eval_episodes=1,
-        final_eval_episodes=1,
-        pruner="none",
-        log_folder=str(tmp_path),
-        overrides={"learning_starts": 100, "policy_kwargs": {"net_arch": [4]}, "batch_size": 8},
-        device="cpu",
-    )
-    on_step = tuning.TrialEvalCallback._on_step
-
-    def interrupt_second_seed(callback):
-        if callback.step_offset == 2 and callback.num_timesteps == 150:
-            raise KeyboardInterrupt
-        return on_step(callback)
-
-    monkeypatch.setattr(tuning.TrialEvalCallback, "_on_step", interrupt_second_seed)
-    with pytest.raises(RunInterrupted):
-        tune(settings)
-    monkeypatch.setattr(tuning.TrialEvalCallback, "_on_step", on_step)
+    settings = tiny_study(tmp_path)
+    tune_interrupted(settings, monkeypatch, lambda callback: callback.step_offset == 2 and callback.num_timesteps == 150)
     trial_dir = tmp_path / "tuning" / settings.name / "trial_0"
     first_seed = trial_dir / "seed_0" / "Pendulum-v1.zip"
     trained_at = first_seed.stat().st_mtime_ns
-    storage = optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(settings.storage_url()))
+    storage = journal(settings)
     (interrupted,) = optuna.load_study(study_name=settings.name, storage=storage).trials
     assert interrupted.state == optuna.trial.TrialState.FAIL
     assert sorted(interrupted.intermediate_values) == [0, 1, 2]
@@ -146,33 +150,11 @@ def test_interrupted_trial_keeps_its_runs(tmp_path, monkeypatch, capsys):
 
 def test_continuation_with_a_changed_entry_starts_afresh(tmp_path, monkeypatch):
     """Runs of an interrupted trial are reused only for the same entry: new -params make the continuation retrain."""
-    settings = TuneSettings(
-        algo="ddpg",
-        env_id="Pendulum-v1",
-        n_trials=1,
-        n_timesteps=100,
-        n_evaluations=1,
-        eval_episodes=1,
-        final_eval_episodes=1,
-        pruner="none",
-        log_folder=str(tmp_path),
-        overrides={"learning_starts": 50, "policy_kwargs": {"net_arch": [4]}, "batch_size": 8},
-        device="cpu",
-    )
-    on_step = tuning.TrialEvalCallback._on_step
-
-    def interrupt(callback):
-        if callback.num_timesteps == 60:
-            raise KeyboardInterrupt
-        return on_step(callback)
-
-    monkeypatch.setattr(tuning.TrialEvalCallback, "_on_step", interrupt)
-    with pytest.raises(RunInterrupted):
-        tune(settings)
-    monkeypatch.setattr(tuning.TrialEvalCallback, "_on_step", on_step)
+    settings = tiny_study(tmp_path, seeds=(0,))
+    tune_interrupted(settings, monkeypatch, lambda callback: callback.num_timesteps == 150)
     settings.overrides["batch_size"] = 16
     tune(settings)
-    storage = optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(settings.storage_url()))
+    storage = journal(settings)
     _, continuation = optuna.load_study(study_name=settings.name, storage=storage).trials
     assert continuation.user_attrs["continues"] == 0
     assert continuation.user_attrs["trial_dir"] == "trial_1"
@@ -180,22 +162,9 @@ def test_continuation_with_a_changed_entry_starts_afresh(tmp_path, monkeypatch):
 
 
 def test_reports_every_evaluation_of_every_seed(tmp_path):
-    settings = TuneSettings(
-        algo="ddpg",
-        env_id="Pendulum-v1",
-        n_trials=1,
-        n_timesteps=200,
-        seeds=(0, 1),
-        n_evaluations=2,
-        eval_episodes=1,
-        final_eval_episodes=1,
-        pruner="none",
-        log_folder=str(tmp_path),
-        overrides={"learning_starts": 100, "policy_kwargs": {"net_arch": [4]}, "batch_size": 8},
-        device="cpu",
-    )
+    settings = tiny_study(tmp_path)
     tune(settings)
-    storage = optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(settings.storage_url()))
+    storage = journal(settings)
     (trial,) = optuna.load_study(study_name=settings.name, storage=storage).trials
     assert sorted(trial.intermediate_values) == [0, 1, 2, 3]
     assert trial.value == pytest.approx((trial.user_attrs["return_seed_0"] + trial.user_attrs["return_seed_1"]) / 2)
