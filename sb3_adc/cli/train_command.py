@@ -22,6 +22,7 @@ from sb3_adc.cli.common import (
 from sb3_adc.cli.tune_arguments import TUNING_HELP, add_tuning_arguments, run_tuning
 from sb3_adc.config import check_env_id
 from sb3_adc.experiment import TrainSettings, find_run, resume, train
+from sb3_adc.experiment.settings import BEST_MODEL_METRICS
 from sb3_adc.extras import requires_extra
 
 DESCRIPTION = """\
@@ -105,6 +106,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--eval-freq", type=int, default=None, help="evaluate every K timesteps (default: 20 evaluations per run; <= 0: never)"
     )
     parser.add_argument("--eval-episodes", type=int, default=5, help="episodes per periodic evaluation (default: 5)")
+    parser.add_argument(
+        "--best-model-metric",
+        choices=BEST_MODEL_METRICS,
+        default=None,
+        help="what picks best_model.zip among the periodic evaluations: return (default, SB3's) or success (the "
+        "success rate, each evaluation on the same episodes)",
+    )
     parser.add_argument("--n-eval-envs", type=int, default=1, help="environments of the periodic evaluations (default: 1)")
     parser.add_argument(
         "--save-freq", type=int, default=None, help="checkpoint every K timesteps (default: at every evaluation; <= 0: never)"
@@ -142,6 +150,7 @@ _NEW_RUN_OPTIONS = {
     "tensorboard_log": "-tb/--tensorboard-log",
     "eval_env_kwargs": "--eval-env-kwargs",
     "track": "--track",
+    "best_model_metric": "--best-model-metric",
 }
 
 
@@ -236,6 +245,7 @@ def run(args: argparse.Namespace) -> int:
         track=args.track,
         wandb_project_name=args.wandb_project_name,
         wandb_entity=args.wandb_entity,
+        best_model_metric=args.best_model_metric or "return",
     )
     with tracking(settings):
         train(settings)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import zipfile
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
@@ -29,11 +30,14 @@ class EvaluationHistory:
     :param timesteps: Timestep of each evaluation
     :param results: Episode returns of each evaluation
     :param ep_lengths: Episode lengths of each evaluation
+    :param successes: Each evaluation's ``info["is_success"]`` per episode (empty where the episodes do not report
+        it)
     """
 
     timesteps: list[int] = field(default_factory=list)
     results: list[list[float]] = field(default_factory=list)
     ep_lengths: list[list[int]] = field(default_factory=list)
+    successes: list[list[bool]] = field(default_factory=list)
 
     @classmethod
     def load(cls, path: str) -> EvaluationHistory:
@@ -51,11 +55,15 @@ class EvaluationHistory:
                     timesteps=[int(step) for step in data["timesteps"]],
                     results=[[float(value) for value in row] for row in data["results"]],
                     ep_lengths=[[int(value) for value in row] for row in data["ep_lengths"]],
+                    successes=[[bool(value) for value in row] for row in data["successes"]] if "successes" in data else [],
                 )
         except (OSError, ValueError, EOFError, KeyError, TypeError, zipfile.BadZipFile) as error:
             raise DamagedFileError(path, f"{type(error).__name__}: {error}") from error
         if not len(history.timesteps) == len(history.results) == len(history.ep_lengths):
             raise DamagedFileError(path, "timesteps, results and ep_lengths have different lengths")
+        if len(history.successes) != len(history.timesteps):
+            # Runs resumed before the history kept them have fewer rows of successes than evaluations.
+            history.successes = []
         return history
 
     def until(self, timesteps: int) -> EvaluationHistory:
@@ -66,7 +74,10 @@ class EvaluationHistory:
         """
         keep = [index for index, step in enumerate(self.timesteps) if step <= timesteps]
         return EvaluationHistory(
-            [self.timesteps[i] for i in keep], [self.results[i] for i in keep], [self.ep_lengths[i] for i in keep]
+            [self.timesteps[i] for i in keep],
+            [self.results[i] for i in keep],
+            [self.ep_lengths[i] for i in keep],
+            [self.successes[i] for i in keep] if self.successes else [],
         )
 
     def save(self, path: str) -> None:
@@ -75,11 +86,14 @@ class EvaluationHistory:
 
         :param path: The file
         """
-        write_atomically(
-            path,
-            lambda stream: np.savez(stream, timesteps=self.timesteps, results=self.results, ep_lengths=self.ep_lengths),
-            binary=True,
-        )
+        arrays: dict[str, Any] = {"timesteps": self.timesteps, "results": self.results, "ep_lengths": self.ep_lengths}
+        if self.successes:
+            arrays["successes"] = self.successes
+        write_atomically(path, lambda stream: np.savez(stream, **arrays), binary=True)
+
+    def success_rates(self) -> list[float]:
+        """Each evaluation's share of episodes that ended with ``info["is_success"]`` (empty if none reported it)."""
+        return [float(np.mean(row)) for row in self.successes]
 
 
 class PeriodicEvalCallback(EvalCallback):
@@ -89,12 +103,21 @@ class PeriodicEvalCallback(EvalCallback):
     results in ``evaluations.npz`` and only saves ``best_model.zip`` when it beats them. Both files are written
     atomically (``EvalCallback`` writes them in place, where a crash leaves them truncated).
 
+    ``best_model_metric="success"`` keeps as ``best_model.zip`` the model of the evaluation with the highest success
+    rate (ties: the higher mean return) instead of SB3's highest mean return, and evaluates every time on the same
+    episodes (the evaluation environments are seeded with ``eval_seed`` before each evaluation), so that the models
+    are compared on equal terms: on procedural courses, the same layouts. SB3's evaluation environments go on from
+    one evaluation to the next, so each model meets other episodes, and the best is partly the luckiest.
+
     :param eval_env: The evaluation environments
     :param every: Evaluate every this many timesteps (all training environments together)
     :param history: Evaluations made before (a resumed run)
     :param n_eval_episodes: Episodes per evaluation
     :param run_dir: Folder of ``evaluations.npz`` and ``best_model.zip``
     :param verbose: 1 to print each evaluation
+    :param best_model_metric: ``return`` (SB3's rule) or ``success`` (see above; the episodes must report
+        ``info["is_success"]``)
+    :param eval_seed: Seed of the evaluation environments before each evaluation (``best_model_metric="success"``)
     """
 
     def __init__(
@@ -105,6 +128,8 @@ class PeriodicEvalCallback(EvalCallback):
         n_eval_episodes: int,
         run_dir: str,
         verbose: int = 0,
+        best_model_metric: str = "return",
+        eval_seed: int = 0,
     ):
         super().__init__(
             eval_env,
@@ -122,8 +147,15 @@ class PeriodicEvalCallback(EvalCallback):
         self.evaluations_timesteps = list(history.timesteps)
         self.evaluations_results = list(history.results)
         self.evaluations_length = list(history.ep_lengths)
+        self.evaluations_successes = list(history.successes)
         if history.results:
             self.best_mean_reward = max(float(np.mean(row)) for row in history.results)
+        self.best_model_metric = best_model_metric
+        self.eval_seed = eval_seed
+        self.best_success: tuple[float, float] | None = None
+        if history.successes:
+            mean_returns = [float(np.mean(row)) for row in history.results]
+            self.best_success = max(zip(history.success_rates(), mean_returns, strict=True))
 
     def _init_callback(self) -> None:
         super()._init_callback()
@@ -135,14 +167,28 @@ class PeriodicEvalCallback(EvalCallback):
             return True
         self.next_evaluation = (self.num_timesteps // self.every + 1) * self.every
         best_before = self.best_mean_reward
+        if self.best_model_metric == "success":
+            self.eval_env.seed(self.eval_seed)  # the same episodes at every evaluation
         # `EvalCallback` writes the whole history with `np.savez(self.log_path, ...)`: point it to the temporary file.
         with atomic_path(self.evaluations_file) as temporary:
             self.log_path = temporary
             continue_training = super()._on_step()
-        if self.best_mean_reward > best_before:
+        if self._improved(best_before):
             with atomic_path(self.best_model_file) as temporary:
                 self.model.save(temporary)
         return continue_training
+
+    def _improved(self, best_mean_reward_before: float) -> bool:
+        """Whether the evaluation just made is the best so far by :attr:`best_model_metric`."""
+        if self.best_model_metric == "return":
+            return self.best_mean_reward > best_mean_reward_before
+        if not self._is_success_buffer:
+            raise ValueError("best_model_metric 'success': the evaluation's episodes ended without info['is_success']")
+        score = (float(np.mean(self._is_success_buffer)), float(self.last_mean_reward))
+        if self.best_success is not None and score <= self.best_success:
+            return False
+        self.best_success = score
+        return True
 
 
 class CheckpointSaver(CheckpointCallback):

@@ -9,6 +9,7 @@ import json
 from dataclasses import asdict, dataclass
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.evaluation import evaluate_policy
@@ -121,3 +122,27 @@ def evaluate_final(model: BaseAlgorithm, env: VecEnv, n_episodes: int, algo: str
         lengths=[int(value) for value in np.atleast_1d(lengths)],
         successes=successes if len(successes) == len(episode_returns) else None,
     )
+
+
+#: Longest episode of random actions with which :func:`success_unreported` looks for ``info["is_success"]``.
+SUCCESS_PROBE_MAX_STEPS = 10_000
+
+
+def success_unreported(env: gym.Env) -> str | None:
+    """
+    Why success rates cannot be measured on ``env``, or ``None`` if they can: one episode of random actions must end
+    with ``info["is_success"]`` in its last step, which SB3's evaluations read. Options that need a success rate
+    (the tuning's ``objective="success"``, ``best_model_metric="success"``) ask this before anything is written.
+
+    :param env: An evaluation environment, with the entry's wrappers (closed here)
+    """
+    try:
+        env.reset(seed=0)
+        env.action_space.seed(0)
+        for _ in range(SUCCESS_PROBE_MAX_STEPS):
+            _, _, terminated, truncated, info = env.step(env.action_space.sample())
+            if terminated or truncated:
+                return None if info.get("is_success") is not None else "its episodes end without info['is_success']"
+    finally:
+        env.close()
+    return f"no episode ended within {SUCCESS_PROBE_MAX_STEPS} random steps"

@@ -174,7 +174,14 @@ class RunManager(ExperimentManager):
             history = EvaluationHistory.load(self.layout.evaluations)
             own.append(
                 PeriodicEvalCallback(
-                    self.eval_env, self.eval_freq, history, self.n_eval_episodes, self.save_path, self.verbose
+                    self.eval_env,
+                    self.eval_freq,
+                    history,
+                    self.n_eval_episodes,
+                    self.save_path,
+                    self.verbose,
+                    best_model_metric=self.settings.best_model_metric,
+                    eval_seed=self.seed + EVAL_SEED_OFFSET,
                 )
             )
         if self.save_freq > 0:

@@ -19,6 +19,8 @@ from sb3_adc.experiment.layout import env_name
 DEFAULT_EVALUATIONS_PER_RUN = 20
 #: Seed offset of the evaluation environments (they never replay the training environments' episodes).
 EVAL_SEED_OFFSET = 10_000
+#: ``best_model_metric`` choices: what picks ``best_model.zip`` among the periodic evaluations.
+BEST_MODEL_METRICS = ("return", "success")
 #: Folder of the TensorBoard logs of tracked runs (``--track`` without ``-tb``), under the log folder.
 TRACKED_TENSORBOARD_FOLDER = "tensorboard"
 #: Keyword arguments of ``gym.make`` itself, accepted for every environment.
@@ -135,6 +137,10 @@ class TrainSettings:
     :param track: Track the run with Weights & Biases (the ``track`` extra), which uploads the TensorBoard logs
     :param wandb_project_name: The Weights & Biases project of a tracked run
     :param wandb_entity: The Weights & Biases entity (team) of a tracked run (``None``: the user's default)
+    :param best_model_metric: What picks ``best_model.zip`` among the periodic evaluations: ``return`` (SB3's
+        ``EvalCallback``: the highest mean return) or ``success`` (the highest success rate, ties broken by the
+        return, every evaluation on the same episodes; the episodes must report ``info["is_success"]``). With
+        ``eval_env_kwargs`` on a validation split this is model selection on validation data.
     """
 
     algo: str
@@ -163,6 +169,7 @@ class TrainSettings:
     track: bool = False
     wandb_project_name: str = "sb3-adc"
     wandb_entity: str | None = None
+    best_model_metric: str = "return"
 
     def __post_init__(self) -> None:
         """
@@ -175,6 +182,10 @@ class TrainSettings:
                 raise SettingsError(name, f"must be an integer >= 1, got {value!r}")
         if self.vec_env not in ("dummy", "subproc"):
             raise SettingsError("vec_env", f"must be 'dummy' or 'subproc', got {self.vec_env!r}")
+        if self.best_model_metric not in BEST_MODEL_METRICS:
+            raise SettingsError(
+                "best_model_metric", f"must be one of {', '.join(BEST_MODEL_METRICS)}, got {self.best_model_metric!r}"
+            )
         if not isinstance(self.device, str):
             raise SettingsError("device", f"must be a string, got {self.device!r}")
         check_device(self.device)

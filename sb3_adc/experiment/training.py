@@ -14,6 +14,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
+import gymnasium as gym
 import yaml
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.save_util import load_from_zip_file
@@ -27,10 +28,10 @@ from sb3_adc.config import ExperimentConfig, HyperparamsError, load_hyperparams,
 from sb3_adc.config.loader import read_yaml_file
 from sb3_adc.experiment.callbacks import checkpoint_damage
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
-from sb3_adc.experiment.evaluation import FinalEvaluation
+from sb3_adc.experiment.evaluation import FinalEvaluation, success_unreported
 from sb3_adc.experiment.layout import Checkpoint, RunLayout, latest_run_dir, new_run_dir
 from sb3_adc.experiment.manager import RunManager
-from sb3_adc.experiment.settings import SettingsError, TrainSettings
+from sb3_adc.experiment.settings import BEST_MODEL_METRICS, SettingsError, TrainSettings
 
 
 @dataclass
@@ -186,6 +187,16 @@ def _check_before_run(settings: TrainSettings, config: ExperimentConfig) -> None
     algorithm or for other spaces.
     """
     settings.check_env_kwargs(config.env_id, config.env_kwargs)
+    if settings.best_model_metric == "success" and settings.evaluation_interval(config.n_timesteps) > 0:
+        probe = config.wrap_env(gym.make(config.env_id, **settings.evaluation_env_kwargs(config.env_kwargs)))
+        problem = success_unreported(probe)
+        if problem is not None:
+            raise SettingsError(
+                "best_model_metric",
+                f"'success' needs episodes that end with info['is_success'], but on {config.env_id} {problem}; "
+                f"accepted: {', '.join(BEST_MODEL_METRICS)}",
+                "--best-model-metric",
+            )
     env = wrap_vec_env(config, make_run_envs(config, 1, settings.seed), training=False)
     try:
         try:

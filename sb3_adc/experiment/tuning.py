@@ -65,7 +65,7 @@ from sb3_adc.config.loader import (
 )
 from sb3_adc.experiment.divergence import TrainingDiverged
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
-from sb3_adc.experiment.evaluation import FinalEvaluation
+from sb3_adc.experiment.evaluation import FinalEvaluation, success_unreported
 from sb3_adc.experiment.layout import RunLayout, env_name
 from sb3_adc.experiment.manager import RunInterrupted
 from sb3_adc.experiment.samplers import SAMPLERS, Space, sample
@@ -81,9 +81,6 @@ OBJECTIVE_NAMES = ("return", "success")
 #: Bounds of a search space (``--search-space``): keys, and choices per key.
 MAX_SEARCH_KEYS = 32
 MAX_CHOICES = 32
-#: Longest episode of random actions with which ``objective="success"`` checks that the environment reports
-#: ``info["is_success"]`` before a study starts.
-SUCCESS_PROBE_MAX_STEPS = 10_000
 _SHIPPED = "shipped"
 _WORKER = "worker"
 #: User attributes: the trial's folder (relative to the study's), the trial a continuation continues, and a
@@ -445,32 +442,21 @@ def objective_value(settings: TuneSettings, mean_return: float, success_rate: fl
 
 def check_success_reported(settings: TuneSettings, env: gym.Env) -> None:
     """
-    One episode of random actions on an evaluation environment: ``objective="success"`` needs the last step's
-    ``info["is_success"]``, which SB3's evaluations read. Checked before a study starts, so that an environment
-    without it stops the command before anything is written.
+    ``objective="success"`` needs episodes that end with ``info["is_success"]``
+    (:func:`~sb3_adc.experiment.evaluation.success_unreported`); checked before a study starts, so that an
+    environment without it stops the command before anything is written.
 
     :param env: The evaluation environment, with the entry's wrappers (closed here)
     :raises HyperparamsError: naming ``--objective`` if the episode ends without ``is_success`` or does not end
     """
-    problem = f"no episode ended within {SUCCESS_PROBE_MAX_STEPS} random steps"
-    try:
-        env.reset(seed=0)
-        env.action_space.seed(0)
-        for _ in range(SUCCESS_PROBE_MAX_STEPS):
-            _, _, terminated, truncated, info = env.step(env.action_space.sample())
-            if terminated or truncated:
-                if info.get("is_success") is not None:
-                    return
-                problem = "its episodes end without info['is_success']"
-                break
-    finally:
-        env.close()
-    raise HyperparamsError(
-        "command line",
-        "--objective",
-        f"'success' is the share of episodes ending with info['is_success'], but on {settings.env_id} {problem}; "
-        f"accepted: {', '.join(OBJECTIVE_NAMES)}",
-    )
+    problem = success_unreported(env)
+    if problem is not None:
+        raise HyperparamsError(
+            "command line",
+            "--objective",
+            f"'success' is the share of episodes ending with info['is_success'], but on {settings.env_id} {problem}; "
+            f"accepted: {', '.join(OBJECTIVE_NAMES)}",
+        )
 
 
 def check_search_space(settings: TuneSettings) -> None:

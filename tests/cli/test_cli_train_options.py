@@ -69,6 +69,11 @@ def policy_state(model):
         (["-i", "MISSING"], ["`trained_agent` must be a model file saved by adc", "does not exist", "--trained-agent"]),
         (["--resume", "-tb", "runs"], ["--resume continues a run with its saved settings", "-tb/--tensorboard-log"]),
         (["-optimize", "--track"], ["-optimize does not take --track"]),
+        (
+            ["--best-model-metric", "success"],
+            ["`best_model_metric` 'success' needs episodes that end with info['is_success']", "--best-model-metric"],
+        ),
+        (["-optimize", "--best-model-metric", "success"], ["-optimize does not take --best-model-metric"]),
     ],
 )
 def test_bad_input_exits_2_before_any_run_folder(cli, train_args, empty_logs, tmp_path, args, messages):
@@ -78,6 +83,14 @@ def test_bad_input_exits_2_before_any_run_folder(cli, train_args, empty_logs, tm
     for message in messages:
         assert message in err
     assert "Traceback" not in err
+    assert list(empty_logs.iterdir()) == []
+
+
+def test_an_unknown_best_model_metric_is_rejected_by_the_parser(cli, train_args, empty_logs, capsys):
+    with pytest.raises(SystemExit) as info:
+        cli(*train_args("adc", empty_logs, "--best-model-metric", "accuracy"))
+    assert info.value.code == 2
+    assert "--best-model-metric: invalid choice: 'accuracy' (choose from 'return', 'success')" in capsys.readouterr().err
     assert list(empty_logs.iterdir()) == []
 
 
