@@ -22,6 +22,12 @@ evaluation with the best mean return (SB3's ``EvalCallback`` rule, the RL Zoo's 
 5 episodes on training layouts, none of the test sets), the same rule for every algorithm. The runs are the same
 (trained once, found finished); its results go to folders named ``..._best``.
 
+``--model validated`` scores the ``best_model.zip`` of runs trained for it (their own folders, ``..._validated``):
+10 periodic evaluations per run, each on the same 100 episodes of the validation layouts (``VALIDATION_LAYOUT_SEEDS``,
+2,000,000-2,000,099, which the tuning also used and the test sets do not), keeping the model with the highest
+success rate (``best_model_metric="success"``): model selection on a validation split, the same rule for every
+algorithm, the test layouts and course files still unseen.
+
 Training is ``sb3-adc benchmark``'s engine (resumable, one process per run, same seeds and evaluation for every
 algorithm); the runs go to ``benchmarks/runs/procedural_generalisation/`` (not committed), the tables to
 ``benchmarks/results/procedural_generalisation/{name}/``, the figures to
@@ -65,7 +71,7 @@ from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc.experiment.settings import TrainSettings
 from sb3_adc.experiment.statistics import final_performance, probability_of_improvement
 from sb3_adc_envs.lidar_course import Course
-from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS
+from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS, VALIDATION_LAYOUT_SEEDS
 
 ROOT = Path(__file__).resolve().parent
 RUNS_DIR = ROOT / "runs" / "procedural_generalisation"
@@ -89,7 +95,12 @@ MODELS = {
     "final": "each run's final model",
     "best": "each run's best_model.zip: the periodic evaluation (20 per run, 5 episodes on training layouts) with the "
     "best mean return",
+    "validated": "each run's best_model.zip: the periodic evaluation (10 per run, the same 100 episodes on the "
+    "validation layouts each time) with the highest success rate",
 }
+#: The periodic evaluations of ``--model validated``: how many per run, and their episodes.
+VALIDATION_EVALUATIONS = 10
+VALIDATION_EPISODES = 100
 
 
 def report(outcome: RunOutcome, done: int, total: int, by_folder: bool = False) -> None:
@@ -311,6 +322,27 @@ def score_run(
     return [run | row for row in rows], [path.assign(algo=algo, seed=seed)[["algo", "seed", *path.columns]] for path in paths]
 
 
+def periodic_evaluations(model: str, n_timesteps: int, validation_episodes: int = VALIDATION_EPISODES) -> dict[str, Any]:
+    """
+    The periodic evaluations of the runs scored with ``--model`` (keywords of ``BenchmarkSettings``): for ``final``
+    and ``best``, 20 of 5 episodes on training layouts (SB3's rule picks ``best_model.zip``); for ``validated``,
+    :data:`VALIDATION_EVALUATIONS` on the same ``validation_episodes`` episodes of the validation layouts, the
+    highest success rate picking ``best_model.zip``.
+
+    :param model: The ``--model`` choice
+    :param n_timesteps: The runs' budget
+    :param validation_episodes: Episodes of each validation evaluation
+    """
+    if model != "validated":
+        return {"eval_episodes": 5}
+    return {
+        "eval_freq": max(n_timesteps // VALIDATION_EVALUATIONS, 1),
+        "eval_episodes": validation_episodes,
+        "eval_env_kwargs": {"layout_seeds": list(VALIDATION_LAYOUT_SEEDS)},
+        "best_model_metric": "success",
+    }
+
+
 def robot_overrides(algo: str, env_id: str, robot: str, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """
     ``overrides`` (of a ``--configs`` file) with another robot: the ``env_kwargs`` they give, or the entry's, with
@@ -358,7 +390,10 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="smoke run: 2 seeds, 600 steps, 3 layouts, 1 course")
     parser.add_argument("--replot", action="store_true", help="redraw the figure from the committed success.csv")
     parser.add_argument(
-        "--model", choices=["final", "best"], default="final", help="which model of each run is scored (default: final)"
+        "--model",
+        choices=list(MODELS),
+        default="final",
+        help="which model of each run is scored (default: final; validated: runs of their own, see above)",
     )
     args = parser.parse_args()
     if min(args.workers, args.course_episodes, args.reps, args.trajectory_layouts) < 1:
@@ -389,7 +424,9 @@ def main() -> None:
         seeds, n_layouts, courses, reps = seeds[:2], 3, courses[:1], 200
         budgets = dict.fromkeys(args.algos, 600)
     trajectory_layouts = min(trajectory_layouts, n_layouts)
-    folder = RUNS_DIR / (grid + quick)  # the same runs whichever model is scored
+    # The same runs for the final and the best model; --model validated trains runs of its own.
+    runs_name = grid + ("_validated" if args.model == "validated" else "") + quick
+    folder = RUNS_DIR / runs_name
     output = RESULTS_DIR / name
     if args.replot:
         figure = DOCS_STATIC / f"procedural_generalisation_{name}.png"
@@ -404,16 +441,18 @@ def main() -> None:
     start = time.perf_counter()
     finals, statuses = [], Counter[str]()
     for algo in args.algos:
+        overrides = robot_overrides(algo, args.env, args.robot, configs[algo])
+        budget = budgets[algo] or load_hyperparams(algo, args.env, None, overrides).n_timesteps
         settings = BenchmarkSettings(
             algos=[algo],
             env_ids=[args.env],
             seeds=seeds,
             log_folder=str(folder / algo),
             n_timesteps=budgets[algo],
-            overrides=robot_overrides(algo, args.env, args.robot, configs[algo]),
-            eval_episodes=5,
+            overrides=overrides,
             final_eval_episodes=20,
             device="cpu",
+            **periodic_evaluations(args.model, budget, VALIDATION_EPISODES if not args.quick else 3),
         )
         result = run_benchmark(settings, workers=args.workers, report=report)
         statuses.update(outcome.status for outcome in result.outcomes)
@@ -422,7 +461,7 @@ def main() -> None:
         finals.append(pd.read_csv(result.tables[FINAL_CSV]))
     # The training of the grid (recorded beside its final models when `--model best` finds every run finished).
     elapsed = time.perf_counter() - start
-    training = training_record(RESULTS_DIR / (grid + quick), statuses, elapsed, args.workers)
+    training = training_record(RESULTS_DIR / runs_name, statuses, elapsed, args.workers)
     pd.concat(finals, ignore_index=True).to_csv(output / FINAL_CSV, index=False)
     jobs = [
         (
@@ -434,7 +473,7 @@ def main() -> None:
             args.course_episodes,
             n_layouts,
             trajectory_layouts,
-            args.model,
+            "final" if args.model == "final" else "best",
         )
         for algo in args.algos
         for seed in seeds

@@ -114,6 +114,9 @@ class BenchmarkSettings:
     :param device: PyTorch device of the runs
     :param keep_checkpoints: How many of each run's latest checkpoints to keep (one per evaluation; a budget sweep
         keeps them all to score each)
+    :param eval_env_kwargs: ``gym.make`` keywords of the evaluation environments only (a validation split)
+    :param best_model_metric: What picks each run's ``best_model.zip``
+        (:attr:`~sb3_adc.experiment.settings.TrainSettings.best_model_metric`)
     """
 
     algos: list[str]
@@ -128,6 +131,8 @@ class BenchmarkSettings:
     final_eval_episodes: int = 10
     device: str = "cpu"
     keep_checkpoints: int = 2
+    eval_env_kwargs: dict[str, Any] = field(default_factory=dict)
+    best_model_metric: str = "return"
 
     def grid(self) -> list[RunSpec]:
         """Every (algorithm, environment, seed) combination, in that order."""
@@ -155,6 +160,8 @@ class BenchmarkSettings:
             device=self.device,
             keep_checkpoints=self.keep_checkpoints,
             progress_bar=False,
+            eval_env_kwargs=dict(self.eval_env_kwargs),
+            best_model_metric=self.best_model_metric,
         )
 
 

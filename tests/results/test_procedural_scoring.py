@@ -17,6 +17,9 @@ import torch as th
 from stable_baselines3 import TD3
 
 from sb3_adc.cli import main
+from sb3_adc.experiment import TrainSettings
+from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSpec, run_benchmark
+from sb3_adc.experiment.callbacks import EvaluationHistory
 from sb3_adc.experiment.layout import RunLayout
 from sb3_adc_envs.lidar_course import LidarObstacleCourseEnv
 from sb3_adc_envs.lidar_course.course import course_from_dict
@@ -167,3 +170,30 @@ def test_the_training_record_follows_the_invocations_that_trained(scripts, tmp_p
     assert procedural.training_record(tmp_path, Counter(skipped=3), 2.0, 1)["training_invocations"] == [
         {"wall_time_s": 2.0, "workers": 1, "runs": {"skipped": 3}}
     ]
+
+
+def test_validated_runs_keep_the_model_of_the_best_validation_success(scripts, tmp_path):
+    """``--model validated``: runs of their own whose periodic evaluations are on validation layouts, by success."""
+    procedural, _ = scripts
+    assert procedural.periodic_evaluations("final", 300) == {"eval_episodes": 5}
+    assert procedural.periodic_evaluations("best", 300) == {"eval_episodes": 5}
+    (tmp_path / "conf").mkdir()
+    (tmp_path / "conf" / "td3.yml").write_text(textwrap.dedent(TINY_TD3))
+    settings = BenchmarkSettings(
+        algos=["td3"],
+        env_ids=[ENV_ID],
+        seeds=[3],
+        log_folder=str(tmp_path / "runs"),
+        conf_folder=str(tmp_path / "conf"),
+        final_eval_episodes=1,
+        **procedural.periodic_evaluations("validated", 300, validation_episodes=2),
+    )
+    assert not run_benchmark(settings, workers=1).failures
+    run_dir = RunSpec("td3", ENV_ID, 3).run_dir(settings.log_folder)
+    history = EvaluationHistory.load(str(Path(run_dir) / "evaluations.npz"))
+    assert history.timesteps == list(range(30, 301, 30))
+    assert [len(row) for row in history.successes] == [2] * procedural.VALIDATION_EVALUATIONS
+    saved = TrainSettings.of_run(run_dir)
+    assert saved.best_model_metric == "success"
+    assert saved.eval_env_kwargs == {"layout_seeds": [2_000_000, 2_000_100]}
+    assert Path(RunLayout(run_dir, ENV_ID).best_model).is_file()
