@@ -42,6 +42,7 @@ import socket
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from multiprocessing.sharedctypes import Synchronized
 from typing import IO, Any
 
 import gymnasium as gym
@@ -274,15 +275,17 @@ def tune(settings: TuneSettings) -> TuneResult:
         f"{settings.n_jobs} worker(s)"
     )
     if remaining > 0:
-        shares = [remaining // settings.n_jobs + (k < remaining % settings.n_jobs) for k in range(settings.n_jobs)]
-        shares = [share for share in shares if share > 0]
-        if len(shares) == 1:
-            _work(settings, base, 0, shares[0])
+        context = multiprocessing.get_context("spawn")
+        # The trials still to run, taken one at a time by whichever worker is free: trials differ in length (a
+        # pruned one stops early), and fixed shares would leave a worker idle while another has several to go.
+        tickets = context.Value("i", remaining)
+        n_workers = min(settings.n_jobs, remaining)
+        if n_workers == 1:
+            _work(settings, base, 0, tickets)
         else:
-            context = multiprocessing.get_context("spawn")
             workers = [
-                context.Process(target=_work, args=(settings, base, k, share), name=f"tuning-worker-{k}")
-                for k, share in enumerate(shares)
+                context.Process(target=_work, args=(settings, base, k, tickets), name=f"tuning-worker-{k}")
+                for k in range(n_workers)
             ]
             for worker in workers:
                 worker.start()
@@ -297,12 +300,22 @@ def tune(settings: TuneSettings) -> TuneResult:
     return result
 
 
-def _work(settings: TuneSettings, base: dict[str, Any], worker: int, n_trials: int) -> None:
-    """One worker: run ``n_trials`` trials of the study."""
+def _work(settings: TuneSettings, base: dict[str, Any], worker: int, tickets: Synchronized[int]) -> None:
+    """One worker: run trials of the study while ``tickets`` (shared by the workers) has trials left to run."""
     th.set_num_threads(1)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = _open_study(settings, worker)
-    study.optimize(lambda trial: _objective(trial, settings, base), n_trials=n_trials, catch=())
+    while _take(tickets):
+        study.optimize(lambda trial: _objective(trial, settings, base), n_trials=1, catch=())
+
+
+def _take(tickets: Synchronized[int]) -> bool:
+    """Take one of the trials left to run, if any."""
+    with tickets.get_lock():
+        if tickets.value <= 0:
+            return False
+        tickets.value -= 1
+        return True
 
 
 def _objective(trial: optuna.Trial, settings: TuneSettings, base: dict[str, Any]) -> float:

@@ -1,5 +1,6 @@
 """Search spaces and study bookkeeping of :mod:`sb3_adc.experiment.tuning`."""
 
+import multiprocessing
 import os
 import socket
 import subprocess
@@ -168,3 +169,16 @@ def test_reports_every_evaluation_of_every_seed(tmp_path):
     (trial,) = optuna.load_study(study_name=settings.name, storage=storage).trials
     assert sorted(trial.intermediate_values) == [0, 1, 2, 3]
     assert trial.value == pytest.approx((trial.user_attrs["return_seed_0"] + trial.user_attrs["return_seed_1"]) / 2)
+
+
+def test_workers_take_the_trials_left_one_at_a_time(tmp_path):
+    """A worker runs trials while the shared count has some left, so a free worker takes the next one."""
+    settings = tiny_study(tmp_path, seeds=(0,), n_evaluations=1)
+    os.makedirs(settings.study_dir)
+    tickets = multiprocessing.get_context("spawn").Value("i", 2)
+    base = tuning._base_entry(settings)
+    tuning._work(settings, base, 0, tickets)
+    assert tickets.value == 0
+    tuning._work(settings, base, 1, tickets)  # nothing left: runs none
+    trials = optuna.load_study(study_name=settings.name, storage=journal(settings)).trials
+    assert [trial.state for trial in trials] == [optuna.trial.TrialState.COMPLETE] * 2
