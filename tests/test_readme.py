@@ -47,3 +47,6 @@ def test_readme_procedural_figures_are_the_committed_ones():
     assert f"with TD3's learning rates ADC reaches {rates['adc']}" in readme
     winners = held_out_iqm("LidarObstacleCourse-v1_fair_tuning_lidar")
     assert f"reach {winners['td3']} for TD3 and {winners['ddpg']} for DDPG" in readme
+    studies = (ROOT / "benchmarks" / "results" / "fair_tuning_lidar" / "summary.md").read_text()
+    (sac,) = re.findall(r"^\| sac \| \d+ \| trial \d+ \| ([\d.]+) \|$", studies, flags=re.MULTILINE)
+    assert f"SAC's best trial, {sac} on the validation layouts" in readme
