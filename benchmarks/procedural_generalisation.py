@@ -22,11 +22,12 @@ evaluation with the best mean return (SB3's ``EvalCallback`` rule, the RL Zoo's 
 5 episodes on training layouts, none of the test sets), the same rule for every algorithm. The runs are the same
 (trained once, found finished); its results go to folders named ``..._best``.
 
-``--model validated`` scores the ``best_model.zip`` of runs trained for it (their own folders, ``..._validated``):
-10 periodic evaluations per run, each on the same 100 episodes of the validation layouts (``VALIDATION_LAYOUT_SEEDS``,
-2,000,000-2,000,099, which the tuning also used and the test sets do not), keeping the model with the highest
-success rate (``best_model_metric="success"``): model selection on a validation split, the same rule for every
-algorithm, the test layouts and course files still unseen.
+``--validation`` trains runs of their own (folders ``..._validation``) whose periodic evaluations select the model
+on a validation split: 10 per run, each on the same 100 episodes of the validation layouts
+(``VALIDATION_LAYOUT_SEEDS``, 2,000,000-2,000,099, which the tuning also used and the test sets do not), keeping as
+``best_model.zip`` the model with the highest success rate (``best_model_metric="success"``); ``--model best``
+then scores those models and ``--model final`` the final ones of the same runs, the test layouts and course files
+unseen by either.
 
 Training is ``sb3-adc benchmark``'s engine (resumable, one process per run, same seeds and evaluation for every
 algorithm); the runs go to ``benchmarks/runs/procedural_generalisation/`` (not committed), the tables to
@@ -95,10 +96,13 @@ MODELS = {
     "final": "each run's final model",
     "best": "each run's best_model.zip: the periodic evaluation (20 per run, 5 episodes on training layouts) with the "
     "best mean return",
-    "validated": "each run's best_model.zip: the periodic evaluation (10 per run, the same 100 episodes on the "
-    "validation layouts each time) with the highest success rate",
 }
-#: The periodic evaluations of ``--model validated``: how many per run, and their episodes.
+#: What ``--model best`` scores for runs trained with ``--validation``.
+VALIDATION_BEST = (
+    "each run's best_model.zip: the periodic evaluation (10 per run, the same 100 episodes on the validation layouts "
+    "each time) with the highest success rate"
+)
+#: The periodic evaluations of ``--validation`` runs: how many per run, and their episodes.
 VALIDATION_EVALUATIONS = 10
 VALIDATION_EPISODES = 100
 
@@ -322,18 +326,17 @@ def score_run(
     return [run | row for row in rows], [path.assign(algo=algo, seed=seed)[["algo", "seed", *path.columns]] for path in paths]
 
 
-def periodic_evaluations(model: str, n_timesteps: int, validation_episodes: int = VALIDATION_EPISODES) -> dict[str, Any]:
+def periodic_evaluations(validation: bool, n_timesteps: int, validation_episodes: int = VALIDATION_EPISODES) -> dict[str, Any]:
     """
-    The periodic evaluations of the runs scored with ``--model`` (keywords of ``BenchmarkSettings``): for ``final``
-    and ``best``, 20 of 5 episodes on training layouts (SB3's rule picks ``best_model.zip``); for ``validated``,
-    :data:`VALIDATION_EVALUATIONS` on the same ``validation_episodes`` episodes of the validation layouts, the
-    highest success rate picking ``best_model.zip``.
+    The periodic evaluations of the runs (keywords of ``BenchmarkSettings``): 20 of 5 episodes on training layouts,
+    SB3's rule picking ``best_model.zip``; with ``validation`` (``--validation``), :data:`VALIDATION_EVALUATIONS` on
+    the same ``validation_episodes`` episodes of the validation layouts, the highest success rate picking it.
 
-    :param model: The ``--model`` choice
+    :param validation: Whether the runs select their model on the validation layouts
     :param n_timesteps: The runs' budget
     :param validation_episodes: Episodes of each validation evaluation
     """
-    if model != "validated":
+    if not validation:
         return {"eval_episodes": 5}
     return {
         "eval_freq": max(n_timesteps // VALIDATION_EVALUATIONS, 1),
@@ -390,10 +393,12 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="smoke run: 2 seeds, 600 steps, 3 layouts, 1 course")
     parser.add_argument("--replot", action="store_true", help="redraw the figure from the committed success.csv")
     parser.add_argument(
-        "--model",
-        choices=list(MODELS),
-        default="final",
-        help="which model of each run is scored (default: final; validated: runs of their own, see above)",
+        "--model", choices=list(MODELS), default="final", help="which model of each run is scored (default: final)"
+    )
+    parser.add_argument(
+        "--validation",
+        action="store_true",
+        help="runs of their own that select best_model.zip by success on the validation layouts (see above)",
     )
     args = parser.parse_args()
     if min(args.workers, args.course_episodes, args.reps, args.trajectory_layouts) < 1:
@@ -416,7 +421,8 @@ def main() -> None:
     robot = "" if args.robot == "kinematic" else f"_{args.robot}"
     grid = args.env.split("/")[-1] + robot + stem
     quick = "_quick" if args.quick else ""
-    name = grid + ("" if args.model == "final" else f"_{args.model}") + quick
+    runs_name = grid + ("_validation" if args.validation else "") + quick
+    name = runs_name.removesuffix(quick) + ("" if args.model == "final" else f"_{args.model}") + quick
     seeds, n_layouts, reps = SEEDS, len(range(*TEST_LAYOUT_SEEDS)), args.reps
     courses = sorted(path.stem for path in COURSES_DIR.glob("*.yml"))
     trajectory_layouts = args.trajectory_layouts
@@ -424,9 +430,7 @@ def main() -> None:
         seeds, n_layouts, courses, reps = seeds[:2], 3, courses[:1], 200
         budgets = dict.fromkeys(args.algos, 600)
     trajectory_layouts = min(trajectory_layouts, n_layouts)
-    # The same runs for the final and the best model; --model validated trains runs of its own.
-    runs_name = grid + ("_validated" if args.model == "validated" else "") + quick
-    folder = RUNS_DIR / runs_name
+    folder = RUNS_DIR / runs_name  # the same runs whichever model is scored
     output = RESULTS_DIR / name
     if args.replot:
         figure = DOCS_STATIC / f"procedural_generalisation_{name}.png"
@@ -452,7 +456,7 @@ def main() -> None:
             overrides=overrides,
             final_eval_episodes=20,
             device="cpu",
-            **periodic_evaluations(args.model, budget, VALIDATION_EPISODES if not args.quick else 3),
+            **periodic_evaluations(args.validation, budget, VALIDATION_EPISODES if not args.quick else 3),
         )
         result = run_benchmark(settings, workers=args.workers, report=report)
         statuses.update(outcome.status for outcome in result.outcomes)
@@ -473,7 +477,7 @@ def main() -> None:
             args.course_episodes,
             n_layouts,
             trajectory_layouts,
-            "final" if args.model == "final" else "best",
+            args.model,
         )
         for algo in args.algos
         for seed in seeds
@@ -518,7 +522,8 @@ def main() -> None:
         "hyperparams": "shipped (hyperparams/{algo}.yml)"
         + (f" with the overrides of {repository_path(args.configs)}" if args.configs else ""),
         **({"configs": configs} if args.configs else {}),
-        "model": MODELS[args.model],
+        "model": VALIDATION_BEST if args.validation and args.model == "best" else MODELS[args.model],
+        **({"validation": periodic_evaluations(True, 0)} if args.validation else {}),
         "held_out_layouts": [TEST_LAYOUT_SEEDS[0], TEST_LAYOUT_SEEDS[0] + n_layouts - 1],
         "trajectory_layouts": trajectory_layouts,
         "courses": courses,

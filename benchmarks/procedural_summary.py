@@ -30,7 +30,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import pandas as pd
-from procedural_generalisation import ALGOS, DOCS_STATIC, HELD_OUT, MODELS, RESULTS_DIR, held_out_courses
+from procedural_generalisation import ALGOS, DOCS_STATIC, HELD_OUT, RESULTS_DIR, VALIDATION_BEST, held_out_courses
 from procedural_generalisation import HITS as HIT_KINDS
 
 from sb3_adc.experiment.plots import algo_colors, display_name
@@ -106,7 +106,10 @@ def summarise_grid(folder: Path) -> pd.DataFrame:
     episodes = {HELD_OUT: success[success["test_set"] == HELD_OUT], COURSE_FILES: unseen_files(success)}
     # Grids written before --model existed scored the final models.
     described = metadata.get("model", "final")
-    model = "validated" if described == MODELS["validated"] else "best" if described.startswith("each run's best") else "final"
+    if described == VALIDATION_BEST:
+        model = "best on validation"
+    else:
+        model = "best" if described.startswith("each run's best") else "final"
     rows = []
     for table in (held_out, performance):
         for row in table.to_dict("records"):

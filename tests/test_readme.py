@@ -45,6 +45,8 @@ def test_readme_procedural_figures_are_the_committed_ones():
     assert f"ADC reaches {tuned['adc']} and TD3 {tuned['td3']}" in readme
     rates = held_out_iqm("LidarObstacleCourse-v1_td3_rates_150k")
     assert f"with TD3's learning rates ADC reaches {rates['adc']}" in readme
+    selected = held_out_iqm("LidarObstacleCourse-v1_td3_rates_150k_validation_best")
+    assert f"and {selected['adc']} with the model each of those runs selects by success" in readme
     winners = held_out_iqm("LidarObstacleCourse-v1_fair_tuning_lidar")
     assert f"reach {winners['td3']} for TD3 and {winners['ddpg']} for DDPG" in readme
     studies = (ROOT / "benchmarks" / "results" / "fair_tuning_lidar" / "summary.md").read_text()

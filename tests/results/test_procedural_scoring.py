@@ -173,10 +173,9 @@ def test_the_training_record_follows_the_invocations_that_trained(scripts, tmp_p
 
 
 def test_validated_runs_keep_the_model_of_the_best_validation_success(scripts, tmp_path):
-    """``--model validated``: runs of their own whose periodic evaluations are on validation layouts, by success."""
+    """``--validation``: runs of their own whose periodic evaluations are on validation layouts, by success."""
     procedural, _ = scripts
-    assert procedural.periodic_evaluations("final", 300) == {"eval_episodes": 5}
-    assert procedural.periodic_evaluations("best", 300) == {"eval_episodes": 5}
+    assert procedural.periodic_evaluations(False, 300) == {"eval_episodes": 5}
     (tmp_path / "conf").mkdir()
     (tmp_path / "conf" / "td3.yml").write_text(textwrap.dedent(TINY_TD3))
     settings = BenchmarkSettings(
@@ -186,7 +185,7 @@ def test_validated_runs_keep_the_model_of_the_best_validation_success(scripts, t
         log_folder=str(tmp_path / "runs"),
         conf_folder=str(tmp_path / "conf"),
         final_eval_episodes=1,
-        **procedural.periodic_evaluations("validated", 300, validation_episodes=2),
+        **procedural.periodic_evaluations(True, 300, validation_episodes=2),
     )
     assert not run_benchmark(settings, workers=1).failures
     run_dir = RunSpec("td3", ENV_ID, 3).run_dir(settings.log_folder)
