@@ -243,9 +243,7 @@ class CheckpointSaver(CheckpointCallback):
 
     def _prune(self) -> None:
         for old in self.layout.checkpoints()[: -self.keep]:
-            for path in (old.model, old.replay_buffer, old.vecnormalize):
-                if os.path.exists(path):
-                    os.remove(path)
+            old.remove()
 
 
 def checkpoint_damage(checkpoint: Checkpoint) -> str | None:

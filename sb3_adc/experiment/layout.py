@@ -122,6 +122,12 @@ class Checkpoint:
     replay_buffer: str
     vecnormalize: str
 
+    def remove(self) -> None:
+        """Delete the checkpoint's files that exist."""
+        for path in (self.model, self.replay_buffer, self.vecnormalize):
+            if os.path.exists(path):
+                os.remove(path)
+
 
 @dataclass(frozen=True)
 class RunLayout:

@@ -400,9 +400,7 @@ def _run_seed(
     # A trial's runs are never trained further: once one has finished, its checkpoints (a replay buffer each)
     # are only disk space. Its final model and evaluation stay, which is what a continued trial reuses.
     for checkpoint in layout.checkpoints():
-        for path in (checkpoint.model, checkpoint.replay_buffer, checkpoint.vecnormalize):
-            if os.path.exists(path):
-                os.remove(path)
+        checkpoint.remove()
     return result.final_evaluation
 
 
