@@ -15,7 +15,8 @@ of every run on the first ``--trajectory-layouts`` held-out layouts are kept (``
 
 ``--configs FILE`` trains the algorithms a YAML file names, each with its overrides of the shipped entry (a mapping
 of algorithm to ``key: value`` overrides, checked as the engine checks ``-params``; ``n_timesteps`` sets the
-budget); its results go to folders named after the file (``{env}_{file stem}``).
+budget); its results go to folders named after the file (``{env}_{file stem}``). ``--algos`` with it trains a subset
+of the file's algorithms (the metadata records which).
 
 ``--model best`` scores each run's ``best_model.zip`` instead of its final model: the model of the run's periodic
 evaluation with the best mean return (SB3's ``EvalCallback`` rule, the RL Zoo's ``--load-best``: 20 evaluations of
@@ -406,8 +407,6 @@ def main() -> None:
     th.set_num_threads(1)
     configs: dict[str, dict[str, Any]] = {algo: {} for algo in args.algos}
     if args.configs:
-        if args.algos != ALGOS:
-            parser.error("--configs names the algorithms: --algos does not combine with it")
         try:
             configs = read_configs(args.configs)
         except (OSError, HyperparamsError) as error:
@@ -415,6 +414,11 @@ def main() -> None:
         unknown = sorted(set(configs) - set(ALGOS))
         if unknown:
             parser.error(f"--configs: {', '.join(unknown)} not among the algorithms {', '.join(ALGOS)}")
+        if args.algos != ALGOS:  # a subset of the file's configurations, in the file's order
+            missing = [algo for algo in args.algos if algo not in configs]
+            if missing:
+                parser.error(f"--algos: {', '.join(missing)} not in {args.configs}, which names {', '.join(configs)}")
+            configs = {algo: overrides for algo, overrides in configs.items() if algo in args.algos}
         args.algos = list(configs)
     budgets = {algo: configs[algo].pop("n_timesteps", None) for algo in args.algos}
     stem = f"_{Path(args.configs).stem}" if args.configs else ""

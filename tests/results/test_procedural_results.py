@@ -98,7 +98,7 @@ def test_committed_reference_planner_was_chosen_on_validation_and_rebuilds(monke
     [
         ("dqn: {gamma: 0.98}\n", [], "dqn not among the algorithms"),
         ("adc: 3\n", [], "mapping of key: value overrides"),
-        ("adc: {gamma: 0.98}\n", ["--algos", "adc"], "--algos does not combine"),
+        ("adc: {gamma: 0.98}\n", ["--algos", "td3"], "--algos: td3 not in"),
     ],
 )
 def test_configs_file_is_checked_before_anything_runs(tmp_path, monkeypatch, capsys, text, extra, message):
@@ -121,6 +121,37 @@ def test_configs_file_is_checked_before_anything_runs(tmp_path, monkeypatch, cap
     sys.modules.pop("procedural_generalisation", None)
 
 
+def test_algos_trains_a_subset_of_a_configs_file_with_its_overrides(tmp_path, monkeypatch):
+    import importlib
+    import sys
+
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    procedural_generalisation = importlib.import_module("procedural_generalisation")
+    monkeypatch.setattr(procedural_generalisation, "RUNS_DIR", tmp_path / "runs")
+    monkeypatch.setattr(procedural_generalisation, "RESULTS_DIR", tmp_path / "results")
+    trained = []
+
+    class Stop(Exception):
+        pass
+
+    def run_benchmark(settings, **_):
+        trained.append(settings)
+        raise Stop
+
+    monkeypatch.setattr(procedural_generalisation, "run_benchmark", run_benchmark)
+    path = tmp_path / "configs.yml"
+    path.write_text("adc: {gamma: 0.95}\nddpg: {gamma: 0.97}\ntd3: {gamma: 0.96, n_timesteps: 1000}\n")
+    monkeypatch.setattr(sys, "argv", ["procedural_generalisation.py", "--configs", str(path), "--algos", "td3"])
+    with pytest.raises(Stop):
+        procedural_generalisation.main()
+    sys.modules.pop("procedural_generalisation", None)
+    (settings,) = trained
+    assert settings.algos == ["td3"]
+    assert settings.n_timesteps == 1000
+    assert settings.overrides["gamma"] == 0.96
+    assert settings.log_folder == str(tmp_path / "runs" / "LidarObstacleCourse-v1_configs" / "td3")
+
+
 def test_committed_results_of_a_configs_file_ran_its_configurations():
     from sb3_adc.config.loader import read_yaml_file
 
@@ -129,10 +160,12 @@ def test_committed_results_of_a_configs_file_ran_its_configurations():
         if "configs" not in metadata:
             continue
         configs = read_yaml_file(str(ROOT / metadata["hyperparams"].rsplit(" ", 1)[-1]))
+        # ``--algos`` may train a subset of the file's algorithms, in the file's order, each with its configuration.
+        assert metadata["algos"] == [algo for algo in configs if algo in metadata["algos"]]
+        configs = {algo: configs[algo] for algo in metadata["algos"]}
         budgets = {algo: overrides.pop("n_timesteps", "the entry's n_timesteps") for algo, overrides in configs.items()}
         assert metadata["configs"] == configs
         assert metadata["n_timesteps"] == budgets
-        assert metadata["algos"] == list(configs)
 
 
 BEST_FOLDERS = [folder for folder in FOLDERS if folder.name.endswith("_best")]
