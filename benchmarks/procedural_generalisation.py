@@ -66,7 +66,7 @@ import torch as th
 
 from sb3_adc.config.experiment_config import ExperimentConfig
 from sb3_adc.config.loader import HyperparamsError, load_hyperparams, read_yaml_file
-from sb3_adc.experiment.benchmark import FINAL_CSV, BenchmarkSettings, RunOutcome, RunSpec, run_benchmark
+from sb3_adc.experiment.benchmark import EVALUATIONS_CSV, FINAL_CSV, BenchmarkSettings, RunOutcome, RunSpec, run_benchmark
 from sb3_adc.experiment.enjoy import load_model, load_run, model_path
 from sb3_adc.experiment.plots import plot_final_performance, plot_trajectories
 from sb3_adc.experiment.provenance import machine_metadata
@@ -105,6 +105,7 @@ VALIDATION_BEST = (
 )
 #: The periodic evaluations of ``--validation`` runs: how many per run, and their episodes.
 VALIDATION_EVALUATIONS = 10
+VALIDATION_CSV = "validation.csv"
 VALIDATION_EPISODES = 100
 
 
@@ -347,6 +348,17 @@ def periodic_evaluations(validation: bool, n_timesteps: int, validation_episodes
     }
 
 
+def validation_table(evaluations: pd.DataFrame) -> pd.DataFrame:
+    """
+    The validation evaluations of ``--validation`` runs (``validation.csv``): per run and evaluation its success rate
+    and mean return on the validation episodes; ``best_model.zip`` is the model of the highest success rate, the
+    first of equal rates with the highest return.
+
+    :param evaluations: The runs' ``evaluations.csv`` (the benchmark engine's table)
+    """
+    return evaluations[["algo", "seed", "timesteps", "success_rate", "mean_return", "n_episodes"]].reset_index(drop=True)
+
+
 def robot_overrides(algo: str, env_id: str, robot: str, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """
     ``overrides`` (of a ``--configs`` file) with another robot: the ``env_kwargs`` they give, or the entry's, with
@@ -447,7 +459,7 @@ def main() -> None:
         return
     output.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    finals, statuses = [], Counter[str]()
+    finals, evaluations, statuses = [], [], Counter[str]()
     for algo in args.algos:
         overrides = robot_overrides(algo, args.env, args.robot, configs[algo])
         budget = budgets[algo] or load_hyperparams(algo, args.env, None, overrides).n_timesteps
@@ -467,9 +479,14 @@ def main() -> None:
         if result.failures:
             raise SystemExit(f"{len(result.failures)} runs of {algo} failed; re-run to retry them")
         finals.append(pd.read_csv(result.tables[FINAL_CSV]))
+        evaluations.append(pd.read_csv(result.tables[EVALUATIONS_CSV]))
     # The training of the grid (recorded beside its final models when `--model best` finds every run finished).
     elapsed = time.perf_counter() - start
     training = training_record(RESULTS_DIR / runs_name, statuses, elapsed, args.workers)
+    if args.validation:  # beside the training record: the runs' evaluations, whichever model is scored
+        validation_table(pd.concat(evaluations, ignore_index=True)).to_csv(
+            RESULTS_DIR / runs_name / VALIDATION_CSV, index=False
+        )
     pd.concat(finals, ignore_index=True).to_csv(output / FINAL_CSV, index=False)
     jobs = [
         (

@@ -32,6 +32,7 @@ EVALUATION_COLUMNS = (
     "max_return",
     "mean_ep_length",
     "n_episodes",
+    "success_rate",
 )
 EPISODE_COLUMNS = ("algo", "env", "seed", "episode", "timesteps", "return", "length", "wall_time_s")
 FINAL_COLUMNS = ("algo", "env", "seed", "timesteps", "mean_return", "std_return", "n_episodes")
@@ -41,15 +42,18 @@ Row = dict[str, Any]
 
 def evaluation_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
     """
-    The periodic evaluations of a run, one row each (columns :data:`EVALUATION_COLUMNS`).
+    The periodic evaluations of a run, one row each (columns :data:`EVALUATION_COLUMNS`). ``success_rate`` is the
+    share of the evaluation's episodes that ended with ``info["is_success"]`` (empty where the episodes report none),
+    the rate SB3's ``EvalCallback`` logs as ``eval/success_rate``.
 
     :param layout: The run's paths
     :param algo: The algorithm's name
     :param seed: The run's seed
     """
     history = EvaluationHistory.load(layout.evaluations)
+    successes = history.successes or [[] for _ in history.timesteps]
     rows = []
-    for step, returns, lengths in zip(history.timesteps, history.results, history.ep_lengths, strict=True):
+    for step, returns, lengths, success in zip(history.timesteps, history.results, history.ep_lengths, successes, strict=True):
         values = np.asarray(returns, dtype=np.float64)
         rows.append(
             {
@@ -63,6 +67,7 @@ def evaluation_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
                 "max_return": float(values.max()),
                 "mean_ep_length": float(np.mean(lengths)),
                 "n_episodes": len(values),
+                "success_rate": float(np.mean(success)) if len(success) else None,
             }
         )
     return rows

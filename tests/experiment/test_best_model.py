@@ -10,6 +10,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 
 from sb3_adc.experiment import TrainSettings, train
 from sb3_adc.experiment.callbacks import EvaluationHistory, PeriodicEvalCallback
+from sb3_adc.experiment.layout import RunLayout
+from sb3_adc.experiment.results import evaluation_rows
 from sb3_adc.experiment.settings import SettingsError
 
 pytest.importorskip("pybullet")
@@ -88,6 +90,20 @@ def test_a_resumed_run_keeps_the_successes_and_the_best_so_far(tmp_path):
     assert callback.best_success == (0.5, 5.0)
     assert callback.evaluations_successes == loaded.successes
     env.close()
+
+
+def test_evaluation_tables_report_each_evaluations_success_rate(tmp_path):
+    layout = RunLayout(str(tmp_path), "Pendulum-v1")
+    EvaluationHistory(
+        timesteps=[10, 20],
+        results=[[1.0, 3.0], [5.0, 5.0]],
+        ep_lengths=[[5, 5], [5, 5]],
+        successes=[[True, False], [True, True]],
+    ).save(layout.evaluations)
+    assert [row["success_rate"] for row in evaluation_rows(layout, "adc", 0)] == [0.5, 1.0]
+    # Episodes that report no success leave the column empty rather than 0.
+    EvaluationHistory(timesteps=[10], results=[[1.0]], ep_lengths=[[5]]).save(layout.evaluations)
+    assert [row["success_rate"] for row in evaluation_rows(layout, "adc", 0)] == [None]
 
 
 def test_a_history_with_fewer_rows_of_successes_loads_without_them(tmp_path):

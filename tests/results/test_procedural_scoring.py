@@ -12,6 +12,7 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 import torch as th
 from stable_baselines3 import TD3
@@ -187,11 +188,17 @@ def test_validated_runs_keep_the_model_of_the_best_validation_success(scripts, t
         final_eval_episodes=1,
         **procedural.periodic_evaluations(True, 300, validation_episodes=2),
     )
-    assert not run_benchmark(settings, workers=1).failures
+    result = run_benchmark(settings, workers=1)
+    assert not result.failures
     run_dir = RunSpec("td3", ENV_ID, 3).run_dir(settings.log_folder)
     history = EvaluationHistory.load(str(Path(run_dir) / "evaluations.npz"))
     assert history.timesteps == list(range(30, 301, 30))
     assert [len(row) for row in history.successes] == [2] * procedural.VALIDATION_EVALUATIONS
+    # validation.csv: each evaluation's success rate on the validation episodes, as the run recorded it.
+    table = procedural.validation_table(pd.read_csv(result.tables["evaluations.csv"]))
+    assert list(table["timesteps"]) == history.timesteps
+    assert list(table["success_rate"]) == history.success_rates()
+    assert (table["n_episodes"] == 2).all()
     saved = TrainSettings.of_run(run_dir)
     assert saved.best_model_metric == "success"
     assert saved.eval_env_kwargs == {"layout_seeds": [2_000_000, 2_000_100]}
