@@ -105,8 +105,9 @@ VALIDATION_BEST = (
 )
 #: The periodic evaluations of ``--validation`` runs: how many per run, and their episodes.
 VALIDATION_EVALUATIONS = 10
-VALIDATION_CSV = "validation.csv"
 VALIDATION_EPISODES = 100
+#: The table of the validation evaluations of ``--validation`` runs, beside their training record.
+VALIDATION_CSV = "validation.csv"
 
 
 def report(outcome: RunOutcome, done: int, total: int, by_folder: bool = False) -> None:
@@ -197,17 +198,28 @@ def load_for_scoring(
     return settings, config, model, kwargs
 
 
-def training_record(output: Path, statuses: Counter[str], seconds: float, workers: int) -> dict[str, Any]:
+def training_record(
+    output: Path, statuses: Counter[str], seconds: float, workers: int, algos: list[str] | None = None
+) -> dict[str, Any]:
     """
     The training facts to record in ``output/metadata.json``: ``training_invocations``, one entry per invocation
-    that trained or resumed runs of the grid (``wall_time_s``, ``workers`` and ``runs``: how many runs it trained,
-    resumed or found finished), ``training_wall_time_s``, their total, and ``training_workers``, the last one's.
+    that trained or resumed runs of the grid (``wall_time_s``, ``workers``, ``algos`` and ``runs``: how many runs
+    it trained, resumed or found finished), ``training_wall_time_s``, their total, and ``training_workers``, the
+    last one's.
 
     An invocation that only scores (every run finished before) keeps the earlier record; one that trains some runs
-    and finds others finished adds itself to it (an algorithm added to a ``--configs`` file); one that finds none
-    finished starts it anew.
+    and finds others finished adds itself to it (an algorithm added to a ``--configs`` file); one that finds none of
+    its runs finished replaces the earlier invocations of its algorithms and keeps those of the grid's other
+    algorithms (trained by an invocation with other ``--algos``).
+
+    :param algos: The algorithms of this invocation (``None``: every algorithm of the grid)
     """
-    this = {"wall_time_s": round(seconds, 1), "workers": workers, "runs": dict(sorted(statuses.items()))}
+    this = {
+        "wall_time_s": round(seconds, 1),
+        "workers": workers,
+        **({"algos": list(algos)} if algos is not None else {}),
+        "runs": dict(sorted(statuses.items())),
+    }
     previous = output / "metadata.json"
     earlier = json.loads(previous.read_text()) if previous.exists() else {}
     history = earlier.get("training_invocations")
@@ -221,8 +233,18 @@ def training_record(output: Path, statuses: Counter[str], seconds: float, worker
                 "runs": runs,
             }
         ]
+    if history and algos is not None and "algos" in earlier:
+        # Entries recorded without their algorithms belong to the algorithms of the metadata that holds them.
+        history = [entry if "algos" in entry else {**entry, "algos": earlier["algos"]} for entry in history]
     if statuses["trained"] + statuses["resumed"]:
-        history = [*((history or []) if statuses["skipped"] else []), this]
+        kept = history or []
+        if not statuses["skipped"]:
+            kept = [
+                entry
+                for entry in kept
+                if algos is not None and not set(entry.get("algos", earlier.get("algos", []))) <= set(algos)
+            ]
+        history = [*kept, this]
     elif not history:
         history = [this]
     return {
@@ -482,7 +504,7 @@ def main() -> None:
         evaluations.append(pd.read_csv(result.tables[EVALUATIONS_CSV]))
     # The training of the grid (recorded beside its final models when `--model best` finds every run finished).
     elapsed = time.perf_counter() - start
-    training = training_record(RESULTS_DIR / runs_name, statuses, elapsed, args.workers)
+    training = training_record(RESULTS_DIR / runs_name, statuses, elapsed, args.workers, args.algos)
     if args.validation:  # beside the training record: the runs' evaluations, whichever model is scored
         validation_table(pd.concat(evaluations, ignore_index=True)).to_csv(
             RESULTS_DIR / runs_name / VALIDATION_CSV, index=False

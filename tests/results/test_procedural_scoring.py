@@ -166,6 +166,21 @@ def test_the_training_record_follows_the_invocations_that_trained(scripts, tmp_p
         "training_workers": 1,
         "training_invocations": [{"wall_time_s": 7.0, "workers": 1, "runs": {"trained": 20}}],
     }
+    # --algos: a grid trained by one invocation per algorithm keeps each one's record; training an algorithm anew
+    # replaces only that algorithm's invocations.
+    metadata.write_text(json.dumps({"algos": ["td3"], **anew}))
+    ddpg = procedural.training_record(tmp_path, Counter(trained=10), 30.0, 2, ["ddpg"])
+    ddpg_entry = {"wall_time_s": 30.0, "workers": 2, "algos": ["ddpg"], "runs": {"trained": 10}}
+    td3_entry = {**anew["training_invocations"][0], "algos": ["td3"]}  # an older entry takes the metadata's algos
+    assert ddpg["training_invocations"] == [td3_entry, ddpg_entry]
+    assert ddpg["training_wall_time_s"] == 37.0
+    metadata.write_text(json.dumps({"algos": ["ddpg"], **ddpg}))
+    again = procedural.training_record(tmp_path, Counter(trained=10), 40.0, 2, ["ddpg"])
+    assert again["training_invocations"] == [td3_entry, {**ddpg_entry, "wall_time_s": 40.0}]
+    both = procedural.training_record(tmp_path, Counter(trained=20), 50.0, 2, ["td3", "ddpg"])
+    assert both["training_invocations"] == [
+        {"wall_time_s": 50.0, "workers": 2, "algos": ["td3", "ddpg"], "runs": {"trained": 20}}
+    ]
     # No metadata yet: this invocation.
     metadata.unlink()
     assert procedural.training_record(tmp_path, Counter(skipped=3), 2.0, 1)["training_invocations"] == [
