@@ -50,5 +50,5 @@ def test_readme_procedural_figures_are_the_committed_ones():
     winners = held_out_iqm("LidarObstacleCourse-v1_fair_tuning_lidar")
     assert f"reach {winners['td3']} for TD3, {winners['sac']} for SAC and {winners['ddpg']} for DDPG" in readme
     winner_selected = held_out_iqm("LidarObstacleCourse-v1_fair_tuning_lidar_validation_best")
-    assert f"TD3's winner reaches {winner_selected['td3']} " in readme
+    assert f"TD3's winner reaches {winner_selected['td3']} and DDPG's {winner_selected['ddpg']} " in readme
     assert f"against ADC's {selected['adc']}." in readme
