@@ -239,11 +239,7 @@ def training_record(
     if statuses["trained"] + statuses["resumed"]:
         kept = history or []
         if not statuses["skipped"]:
-            kept = [
-                entry
-                for entry in kept
-                if algos is not None and not set(entry.get("algos", earlier.get("algos", []))) <= set(algos)
-            ]
+            kept = [entry for entry in kept if algos is not None and not set(entry.get("algos", [])) <= set(algos)]
         history = [*kept, this]
     elif not history:
         history = [this]
