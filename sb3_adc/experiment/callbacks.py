@@ -96,6 +96,39 @@ class EvaluationHistory:
         return [float(np.mean(row)) for row in self.successes]
 
 
+class TimestepSchedule:
+    """
+    The timesteps at which a callback acts: every multiple of ``every`` timesteps (all training environments
+    together), counted from the model's timestep count, so that a resumed run acts at the timesteps an
+    uninterrupted one would. SB3's callbacks count their own calls, which restart at 0 when a run resumes.
+
+    :param every: Timesteps between two actions
+    """
+
+    def __init__(self, every: int):
+        self.every = every
+        self.next = every
+
+    def start(self, num_timesteps: int) -> None:
+        """
+        Act next at the first multiple of :attr:`every` after a timestep count.
+
+        :param num_timesteps: The model's count (a resumed run's is that of its checkpoint)
+        """
+        self.next = (num_timesteps // self.every + 1) * self.every
+
+    def due(self, num_timesteps: int) -> bool:
+        """
+        Whether the callback acts at this timestep count (then the next one is scheduled).
+
+        :param num_timesteps: The model's count now
+        """
+        if num_timesteps < self.next:
+            return False
+        self.start(num_timesteps)
+        return True
+
+
 class PeriodicEvalCallback(EvalCallback):
     """
     SB3's ``EvalCallback``, scheduled on the timestep count rather than on its own call count, and started from
@@ -140,8 +173,7 @@ class PeriodicEvalCallback(EvalCallback):
             deterministic=True,
             verbose=verbose,
         )
-        self.every = every
-        self.next_evaluation = every
+        self.schedule = TimestepSchedule(every)
         self.evaluations_file = os.path.join(run_dir, "evaluations.npz")
         self.best_model_file = os.path.join(run_dir, "best_model.zip")
         self.evaluations_timesteps = list(history.timesteps)
@@ -160,12 +192,11 @@ class PeriodicEvalCallback(EvalCallback):
     def _init_callback(self) -> None:
         super()._init_callback()
         # `self.num_timesteps` is only updated at the first step: read the model's count (a resumed run's).
-        self.next_evaluation = (self.model.num_timesteps // self.every + 1) * self.every
+        self.schedule.start(self.model.num_timesteps)
 
     def _on_step(self) -> bool:
-        if self.num_timesteps < self.next_evaluation:
+        if not self.schedule.due(self.num_timesteps):
             return True
-        self.next_evaluation = (self.num_timesteps // self.every + 1) * self.every
         best_before = self.best_mean_reward
         if self.best_model_metric == "success":
             self.eval_env.seed(self.eval_seed)  # the same episodes at every evaluation
@@ -208,14 +239,13 @@ class CheckpointSaver(CheckpointCallback):
         super().__init__(every, layout.run_dir, CHECKPOINT_PREFIX, save_replay_buffer=True, save_vecnormalize=True)
         self.layout = layout
         self.keep = keep
-        self.next_checkpoint = every
+        self.schedule = TimestepSchedule(every)
 
     def _init_callback(self) -> None:
-        self.next_checkpoint = (self.model.num_timesteps // self.save_freq + 1) * self.save_freq
+        self.schedule.start(self.model.num_timesteps)
 
     def _on_step(self) -> bool:
-        if self.num_timesteps >= self.next_checkpoint:
-            self.next_checkpoint = (self.num_timesteps // self.save_freq + 1) * self.save_freq
+        if self.schedule.due(self.num_timesteps):
             self.save()
         return True
 

@@ -64,6 +64,7 @@ from sb3_adc.config.loader import (
     read_yaml_file,
     select_entry,
 )
+from sb3_adc.experiment.callbacks import TimestepSchedule
 from sb3_adc.experiment.divergence import TrainingDiverged
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
 from sb3_adc.experiment.evaluation import FinalEvaluation, success_unreported
@@ -539,31 +540,27 @@ class TrialEvalCallback(EvalCallback):
         config = load_hyperparams(settings.algo, settings.env_id, hyperparams_file, n_timesteps=settings.n_timesteps)
         config.env_kwargs = settings.evaluation_env_kwargs(config.env_kwargs)
         eval_env = wrap_vec_env(config, make_run_envs(config, 1, seed + EVAL_SEED_OFFSET), training=False)
-        super().__init__(
-            eval_env,
-            n_eval_episodes=settings.eval_episodes,
-            eval_freq=max(config.n_timesteps // settings.n_evaluations // config.n_envs, 1),
-            deterministic=True,
-            verbose=0,
-        )
+        # `eval_freq=1`: `EvalCallback._on_step` evaluates at every call it gets; `schedule` decides which.
+        super().__init__(eval_env, n_eval_episodes=settings.eval_episodes, eval_freq=1, deterministic=True, verbose=0)
         self.trial = trial
         self.settings = settings
         self.step_offset = step_offset
         self.earlier = dict(earlier or {})
-        #: Timesteps between evaluations (and the run's checkpoints)
-        self.interval = self.eval_freq * config.n_envs
+        #: Timesteps between evaluations (and the run's checkpoints): a whole number of steps of every environment
+        self.interval = max(config.n_timesteps // settings.n_evaluations // config.n_envs, 1) * config.n_envs
+        self.schedule = TimestepSchedule(self.interval)
         self.n_reports = 0
         self.is_pruned = False
 
     def _on_training_start(self) -> None:
-        # A resumed run: count calls as an uninterrupted run would, so that it evaluates at the same timesteps, and
-        # carry over the evaluations before its checkpoint (they are not redone).
-        self.n_calls = self.model.num_timesteps // self.model.n_envs
+        # A resumed run evaluates at the timesteps an uninterrupted one would and carries over the evaluations
+        # before its checkpoint (they are not redone).
+        self.schedule.start(self.model.num_timesteps)
         self.n_reports = min(self.model.num_timesteps // self.interval, self.settings.n_evaluations)
         _carry_reports(self.trial, self.earlier, self.step_offset, self.step_offset + self.n_reports)
 
     def _on_step(self) -> bool:
-        if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
+        if self.schedule.due(self.num_timesteps):
             super()._on_step()
             # EvalCallback keeps the is_success of the evaluation's episodes (SB3 logs their mean as success_rate).
             success_rate = float(np.mean(self._is_success_buffer)) if self._is_success_buffer else None
