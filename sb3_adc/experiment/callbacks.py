@@ -91,9 +91,12 @@ class EvaluationHistory:
             arrays["successes"] = self.successes
         write_atomically(path, lambda stream: np.savez(stream, **arrays), binary=True)
 
-    def success_rates(self) -> list[float]:
-        """Each evaluation's share of episodes that ended with ``info["is_success"]`` (empty if none reported it)."""
-        return [float(np.mean(row)) for row in self.successes]
+    def success_rates(self) -> list[float | None]:
+        """
+        Each evaluation's share of episodes that ended with ``info["is_success"]`` (SB3's ``eval/success_rate``):
+        ``None`` for an evaluation whose episodes did not report it, an empty list if the history kept none.
+        """
+        return [float(np.mean(row)) if row else None for row in self.successes]
 
 
 class TimestepSchedule:
@@ -185,9 +188,10 @@ class PeriodicEvalCallback(EvalCallback):
         self.best_model_metric = best_model_metric
         self.eval_seed = eval_seed
         self.best_success: tuple[float, float] | None = None
-        if history.successes:
-            mean_returns = [float(np.mean(row)) for row in history.results]
-            self.best_success = max(zip(history.success_rates(), mean_returns, strict=True))
+        mean_returns = [float(np.mean(row)) for row in history.results]
+        scores = [(rate, mean) for rate, mean in zip(history.success_rates(), mean_returns, strict=False) if rate is not None]
+        if scores:
+            self.best_success = max(scores)
 
     def _init_callback(self) -> None:
         super()._init_callback()

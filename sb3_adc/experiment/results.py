@@ -51,9 +51,11 @@ def evaluation_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
     :param seed: The run's seed
     """
     history = EvaluationHistory.load(layout.evaluations)
-    successes = history.successes or [[] for _ in history.timesteps]
+    success_rates = history.success_rates() or [None for _ in history.timesteps]
     rows = []
-    for step, returns, lengths, success in zip(history.timesteps, history.results, history.ep_lengths, successes, strict=True):
+    for step, returns, lengths, success_rate in zip(
+        history.timesteps, history.results, history.ep_lengths, success_rates, strict=True
+    ):
         values = np.asarray(returns, dtype=np.float64)
         rows.append(
             {
@@ -67,7 +69,7 @@ def evaluation_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
                 "max_return": float(values.max()),
                 "mean_ep_length": float(np.mean(lengths)),
                 "n_episodes": len(values),
-                "success_rate": float(np.mean(success)) if len(success) else None,
+                "success_rate": success_rate,
             }
         )
     return rows

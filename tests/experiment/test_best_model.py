@@ -89,6 +89,11 @@ def test_a_resumed_run_keeps_the_successes_and_the_best_so_far(tmp_path):
     callback = PeriodicEvalCallback(env, 10, loaded, 2, str(tmp_path), best_model_metric="success")
     assert callback.best_success == (0.5, 5.0)
     assert callback.evaluations_successes == loaded.successes
+    # An evaluation whose episodes reported no success has no rate (not 0, nor numpy's NaN of an empty mean) and
+    # cannot be the best.
+    partial = EvaluationHistory(timesteps=[10, 20], results=[[9.0], [1.0]], ep_lengths=[[5], [5]], successes=[[], [False]])
+    assert partial.success_rates() == [None, 0.0]
+    assert PeriodicEvalCallback(env, 10, partial, 1, str(tmp_path), best_model_metric="success").best_success == (0.0, 1.0)
     env.close()
 
 
