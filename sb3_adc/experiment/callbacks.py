@@ -19,6 +19,7 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_adc.common.atomic import atomic_path, write_atomically
 from sb3_adc.experiment.divergence import check_finite_weights
+from sb3_adc.experiment.evaluation import success_rate
 from sb3_adc.experiment.layout import CHECKPOINT_PREFIX, Checkpoint, DamagedFileError, RunLayout
 
 
@@ -96,7 +97,7 @@ class EvaluationHistory:
         Each evaluation's share of episodes that ended with ``info["is_success"]`` (SB3's ``eval/success_rate``):
         ``None`` for an evaluation whose episodes did not report it, an empty list if the history kept none.
         """
-        return [float(np.mean(row)) if row else None for row in self.successes]
+        return [success_rate(row) for row in self.successes]
 
 
 class TimestepSchedule:
@@ -217,9 +218,10 @@ class PeriodicEvalCallback(EvalCallback):
         """Whether the evaluation just made is the best so far by :attr:`best_model_metric`."""
         if self.best_model_metric == "return":
             return self.best_mean_reward > best_mean_reward_before
-        if not self._is_success_buffer:
+        rate = success_rate(self._is_success_buffer)
+        if rate is None:
             raise ValueError("best_model_metric 'success': the evaluation's episodes ended without info['is_success']")
-        score = (float(np.mean(self._is_success_buffer)), float(self.last_mean_reward))
+        score = (rate, float(self.last_mean_reward))
         if self.best_success is not None and score <= self.best_success:
             return False
         self.best_success = score

@@ -6,6 +6,7 @@ and the success rate where the environment reports ``info["is_success"]`` at the
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -16,6 +17,16 @@ from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_adc.common.atomic import write_atomically
+
+
+def success_rate(successes: Sequence[bool] | None) -> float | None:
+    """
+    The share of episodes that ended with ``info["is_success"]`` (SB3's ``eval/success_rate``), or ``None`` where
+    the episodes reported none (``None`` or no episode: no rate, rather than numpy's NaN of an empty mean).
+
+    :param successes: ``info["is_success"]`` at the end of each episode
+    """
+    return float(np.mean(successes)) if successes else None
 
 
 @dataclass
@@ -52,7 +63,7 @@ class FinalEvaluation:
     @property
     def success_rate(self) -> float | None:
         """The share of successful episodes, or ``None`` where the environment reports no success."""
-        return None if self.successes is None else float(np.mean(self.successes))
+        return success_rate(self.successes)
 
     def summary(self) -> str:
         """One line: ``Final evaluation of adc on Pendulum-v1 (seed 0, 20000 steps): -152.3 +/- 80.1 ...``."""

@@ -67,7 +67,7 @@ from sb3_adc.config.loader import (
 from sb3_adc.experiment.callbacks import TimestepSchedule
 from sb3_adc.experiment.divergence import TrainingDiverged
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
-from sb3_adc.experiment.evaluation import FinalEvaluation, success_unreported
+from sb3_adc.experiment.evaluation import FinalEvaluation, success_rate, success_unreported
 from sb3_adc.experiment.layout import RunLayout, env_name
 from sb3_adc.experiment.manager import RunInterrupted
 from sb3_adc.experiment.samplers import SAMPLERS, Space, sample
@@ -563,8 +563,7 @@ class TrialEvalCallback(EvalCallback):
         if self.schedule.due(self.num_timesteps):
             super()._on_step()
             # EvalCallback keeps the is_success of the evaluation's episodes (SB3 logs their mean as success_rate).
-            success_rate = float(np.mean(self._is_success_buffer)) if self._is_success_buffer else None
-            value = objective_value(self.settings, float(self.last_mean_reward), success_rate)
+            value = objective_value(self.settings, float(self.last_mean_reward), success_rate(self._is_success_buffer))
             self.trial.report(value, self.step_offset + self.n_reports)
             self.n_reports += 1
             if self.trial.should_prune():
