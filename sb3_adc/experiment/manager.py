@@ -32,6 +32,7 @@ from rl_zoo3.exp_manager import ExperimentManager
 from rl_zoo3.utils import ALGOS
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
 from tqdm import TqdmExperimentalWarning
 
@@ -258,6 +259,10 @@ class RunManager(ExperimentManager):
         """
         if self.checkpoint is not None:
             print(f"Resuming {self.save_path} from timestep {self.checkpoint.timesteps} of {self.n_timesteps}")
+        if self.tensorboard_log is None:
+            # SB3's default logger makes a new, empty ``SB3-<date>`` folder in the system's temporary directory for
+            # every model without TensorBoard logs; the run's own folder serves instead (the same output formats).
+            model.set_logger(configure(self.save_path, ["stdout"] if model.verbose >= 1 else []))
         try:
             with warnings.catch_warnings():
                 # SB3's progress bar uses tqdm's rich front-end, which warns that it is experimental.

@@ -1,6 +1,8 @@
-"""Runs started at the same time into one log folder each claim their own run folder; atomic writes."""
+"""Runs started at the same time into one log folder each claim their own run folder; a run writes nothing outside
+it; atomic writes."""
 
 import os
+import tempfile
 import threading
 
 import pytest
@@ -75,6 +77,34 @@ def test_a_run_that_loses_the_race_trains_in_the_next_folder_and_says_which(tmp_
     # The other run's folder is left alone.
     assert os.listdir(winner) == ["Pendulum-v1"]
     assert os.listdir(winner / "Pendulum-v1") == []
+
+
+@pytest.mark.parametrize("verbose", [0, 1])
+def test_a_run_writes_nothing_in_the_temporary_directory(tmp_path, monkeypatch, capsys, verbose):
+    """SB3's default logger makes an empty ``SB3-<date>`` folder in the temporary directory for every model."""
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    conf = tmp_path / "ddpg.yml"
+    conf.write_text(TINY_DDPG)
+    settings = TrainSettings(
+        algo="ddpg",
+        env_id="Pendulum-v1",
+        conf_file=str(conf),
+        log_folder=str(tmp_path / "logs"),
+        eval_freq=0,
+        save_freq=0,
+        final_eval_episodes=1,
+        device="cpu",
+        progress_bar=False,
+        verbose=verbose,
+        n_timesteps=200,  # four episodes of 50 steps: SB3 logs every fourth episode
+    )
+    train(settings)
+    assert list(scratch.glob("SB3-*")) == []
+    # The training logs still go to the console when asked for.
+    assert ("actor_loss" in capsys.readouterr().out) == bool(verbose)
 
 
 def test_a_failed_atomic_write_keeps_the_previous_file(tmp_path):
