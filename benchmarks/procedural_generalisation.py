@@ -369,8 +369,8 @@ def periodic_evaluations(validation: bool, n_timesteps: int, validation_episodes
 def validation_table(evaluations: pd.DataFrame) -> pd.DataFrame:
     """
     The validation evaluations of ``--validation`` runs (``validation.csv``): per run and evaluation its success rate
-    and mean return on the validation episodes; ``best_model.zip`` is the model of the highest success rate, the
-    first of equal rates with the highest return.
+    and mean return on the validation episodes, from which the engine chose ``best_model.zip``
+    (``best_model_metric="success"``, :class:`~sb3_adc.experiment.callbacks.PeriodicEvalCallback`).
 
     :param evaluations: The runs' ``evaluations.csv`` (the benchmark engine's table)
     """
