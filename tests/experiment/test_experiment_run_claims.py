@@ -24,6 +24,24 @@ default:
 """
 
 
+def tiny_settings(tmp_path, **kwargs) -> TrainSettings:
+    """A tiny DDPG run on Pendulum-v1 logging under ``tmp_path/logs``, without evaluations or checkpoints."""
+    conf = tmp_path / "ddpg.yml"
+    conf.write_text(TINY_DDPG)
+    return TrainSettings(
+        algo="ddpg",
+        env_id="Pendulum-v1",
+        conf_file=str(conf),
+        log_folder=str(tmp_path / "logs"),
+        eval_freq=0,
+        save_freq=0,
+        final_eval_episodes=1,
+        device="cpu",
+        progress_bar=False,
+        **kwargs,
+    )
+
+
 def test_racing_threads_each_claim_a_different_run_folder(tmp_path):
     n_threads = 8
     barrier = threading.Barrier(n_threads)
@@ -45,19 +63,7 @@ def test_racing_threads_each_claim_a_different_run_folder(tmp_path):
 
 
 def test_a_run_that_loses_the_race_trains_in_the_next_folder_and_says_which(tmp_path, monkeypatch, capsys):
-    conf = tmp_path / "ddpg.yml"
-    conf.write_text(TINY_DDPG)
-    settings = TrainSettings(
-        algo="ddpg",
-        env_id="Pendulum-v1",
-        conf_file=str(conf),
-        log_folder=str(tmp_path / "logs"),
-        eval_freq=0,
-        save_freq=0,
-        final_eval_episodes=1,
-        device="cpu",
-        progress_bar=False,
-    )
+    settings = tiny_settings(tmp_path)
     # Another run claims Pendulum-v1_1 between this run's listing of the folder and its claim.
     winner = tmp_path / "logs" / "ddpg" / "Pendulum-v1_1"
     real_run_ids = layout_module.run_ids
@@ -86,21 +92,8 @@ def test_a_run_writes_nothing_in_the_temporary_directory(tmp_path, monkeypatch, 
     scratch = tmp_path / "tmp"
     scratch.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(scratch))
-    conf = tmp_path / "ddpg.yml"
-    conf.write_text(TINY_DDPG)
-    settings = TrainSettings(
-        algo="ddpg",
-        env_id="Pendulum-v1",
-        conf_file=str(conf),
-        log_folder=str(tmp_path / "logs"),
-        eval_freq=0,
-        save_freq=0,
-        final_eval_episodes=1,
-        device="cpu",
-        progress_bar=False,
-        verbose=verbose,
-        n_timesteps=200,  # four episodes of 50 steps: SB3 logs every fourth episode
-    )
+    # Four episodes of 50 steps: SB3 logs every fourth episode.
+    settings = tiny_settings(tmp_path, verbose=verbose, n_timesteps=200)
     train(settings)
     assert list(scratch.glob("SB3-*")) == []
     # The training logs still go to the console when asked for.
