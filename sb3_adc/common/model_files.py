@@ -16,6 +16,7 @@ import io
 import os
 import pathlib
 import pickle
+import warnings
 import zipfile
 import zlib
 from collections.abc import Iterator, Mapping
@@ -25,6 +26,25 @@ import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.save_util import load_from_zip_file, recursive_getattr
 from stable_baselines3.common.type_aliases import GymEnv, TensorDict
+
+#: What SB3 (from 2.8) warns in ``_setup_model`` when an off-policy model with ``n_steps > 1`` is given its
+#: ``replay_buffer_class``. A loaded model always is: the file holds the ``NStepReplayBuffer`` and the ``n_steps``
+#: and ``gamma`` SB3 put into ``replay_buffer_kwargs`` when it built the model, so the loaded model does learn
+#: from n-step returns and the warning that ``n_steps`` "is ignored" is wrong there. A subclass of the buffer
+#: (another name) is still warned about.
+_LOADED_N_STEP_WARNING = r"`n_steps=\d+` is ignored because a custom `replay_buffer_class` \(`NStepReplayBuffer`\)"
+
+
+@contextlib.contextmanager
+def loading_model() -> Iterator[None]:
+    """
+    Load a model file inside this: SB3's warning that a loaded n-step model's ``n_steps`` is ignored, which it is
+    not (:data:`_LOADED_N_STEP_WARNING`), stays silent; every other warning is shown.
+    """
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=_LOADED_N_STEP_WARNING, category=UserWarning)
+        yield
+
 
 #: The errors SB3's loader lets through from a damaged or foreign archive: the zip reader's, the unpickler's and
 #: torch's errors on a truncated entry, a missing entry, and SB3's own assertions on the archive's content.
@@ -260,7 +280,7 @@ class CheckedModelFiles(BaseAlgorithm):
         :param kwargs: extra arguments to change the model when loading
         :return: new model instance with loaded parameters
         """
-        with model_file_errors(path, cls.__name__):
+        with model_file_errors(path, cls.__name__), loading_model():
             custom_objects, kwargs = cls._load_arguments(path, env, custom_objects, kwargs)
             return super().load(
                 path,

@@ -10,6 +10,7 @@ import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
+from sb3_adc.common.model_files import loading_model
 from sb3_adc.config import ExperimentConfig, resolve_entry
 from sb3_adc.config.loader import read_yaml_file
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
@@ -84,7 +85,8 @@ def load_model(config: ExperimentConfig, path: str, device: str = "auto") -> Bas
     :param device: PyTorch device
     """
     kwargs: dict[str, Any] = {"buffer_size": 1} if issubclass(config.algorithm_class, OffPolicyAlgorithm) else {}
-    return config.algorithm_class.load(path, device=device, **kwargs)
+    with loading_model():
+        return config.algorithm_class.load(path, device=device, **kwargs)
 
 
 def play(

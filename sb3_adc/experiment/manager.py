@@ -37,7 +37,7 @@ from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
 from tqdm import TqdmExperimentalWarning
 
 from sb3_adc.common.atomic import atomic_path, write_atomically
-from sb3_adc.common.model_files import model_file_errors
+from sb3_adc.common.model_files import loading_model, model_file_errors
 from sb3_adc.config import ALGORITHMS, ExperimentConfig
 from sb3_adc.experiment.callbacks import CheckpointSaver, EvaluationHistory, PeriodicEvalCallback
 from sb3_adc.experiment.divergence import NonFiniteValue, NonFiniteWeights, TrainingDiverged, check_finite_weights
@@ -226,9 +226,10 @@ class RunManager(ExperimentManager):
         """
         algorithm_class: type[Any] = self.experiment.algorithm_class
         if self.checkpoint is not None:
-            model = algorithm_class.load(
-                self.checkpoint.model, env=env, device=self.device, tensorboard_log=self.tensorboard_log
-            )
+            with loading_model():
+                model = algorithm_class.load(
+                    self.checkpoint.model, env=env, device=self.device, tensorboard_log=self.tensorboard_log
+                )
             model.verbose = self.verbose
             if os.path.isfile(self.checkpoint.replay_buffer) and hasattr(model, "load_replay_buffer"):
                 model.load_replay_buffer(self.checkpoint.replay_buffer)
@@ -236,7 +237,7 @@ class RunManager(ExperimentManager):
             model.set_random_seed(self.seed + self.checkpoint.timesteps)
             return model
         print(f"Continuing the training of {self.trained_agent}")
-        with model_file_errors(self.trained_agent, algorithm_class.__name__):
+        with model_file_errors(self.trained_agent, algorithm_class.__name__), loading_model():
             model = super()._load_pretrained_agent(hyperparams, env)
         replay_buffer, _ = self._saved_with_agent()
         if replay_buffer is not None and os.path.basename(replay_buffer) != "replay_buffer.pkl":  # the Zoo loaded that one
