@@ -1,13 +1,17 @@
 """Fault injection: damage the files of an interrupted run on disk, then resume it; and crashes while writing."""
 
 import shutil
+import warnings
 
 import numpy as np
 import pandas as pd
 import pytest
+from stable_baselines3 import TD3
+from stable_baselines3.common.buffers import NStepReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_adc import ADC
+from sb3_adc.common.model_files import loading_model
 from sb3_adc.experiment import RunInterrupted, TrainSettings, resume, train
 from sb3_adc.experiment.callbacks import EvaluationHistory, checkpoint_damage
 from sb3_adc.experiment.layout import DamagedFileError, RunLayout
@@ -187,3 +191,36 @@ def test_a_crash_while_writing_evaluations_keeps_the_previous_file(tmp_path, mon
     monkeypatch.undo()
     assert evaluation_steps(run_dir) == [100]
     assert not list(run_dir.glob("*.partial*"))
+
+
+TINY_TD3_N_STEP = """\
+default:
+  n_timesteps: 200
+  policy: MlpPolicy
+  learning_starts: 50
+  batch_size: 16
+  buffer_size: 1000
+  gamma: 0.9
+  n_steps: 3
+  policy_kwargs: "dict(net_arch=[8])"
+  env_kwargs: {max_episode_steps: 50}
+"""
+
+
+def test_a_resumed_n_step_run_keeps_its_returns_without_sb3s_warning(tmp_path):
+    # The checkpoint's model is loaded with its NStepReplayBuffer: SB3 warns that n_steps "is ignored"; it is not.
+    conf = tmp_path / "td3.yml"
+    conf.write_text(TINY_TD3_N_STEP)
+    with pytest.raises(RunInterrupted):
+        train(tiny_settings(tmp_path, algo="td3", conf_file=str(conf)), callbacks=[InterruptAt(150)])
+    run_dir = tmp_path / "logs" / "td3" / "Pendulum-v1_1"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = resume(str(run_dir))
+    assert result.resumed_from == 150
+    assert not [w for w in caught if "is ignored because a custom `replay_buffer_class`" in str(w.message)]
+    with loading_model():  # SB3's own TD3.load warns likewise
+        model = TD3.load(run_dir / "Pendulum-v1.zip")
+    assert model.num_timesteps == 200
+    assert model.replay_buffer_class is NStepReplayBuffer
+    assert model.replay_buffer_kwargs == {"n_steps": 3, "gamma": 0.9}
