@@ -1,10 +1,12 @@
-"""How often the lidar misses a nearby obstacle, for several numbers of rays (the evidence for ``-v1``'s default).
+"""How often the lidar misses a nearby obstacle, for several numbers of rays (the evidence for ``-v1``'s default)
+and of rays per reading (``rays_per_reading``: each reading the nearest hit of several rays over its sector).
 
 On procedural layouts (layout seeds outside both the training and the held-out range), the robot is placed at
 poses along the corridor (every 0.5 m of the centre line, a random offset across it and a heading within 30
 degrees of the centre line's); for every obstacle whose surface lies within ``NEAR`` of the robot's centre, it
-records whether at least one ray hits that obstacle. The rays and the poses are those of the environment
-(:class:`~sb3_adc_envs.lidar_course.env.LidarObstacleCourseEnv`, 3 m rays over 360 degrees).
+records whether at least one reading shows that obstacle (its ray, or its nearest ray's hit, is on the obstacle).
+The rays and the poses are those of the environment (:class:`~sb3_adc_envs.lidar_course.env.LidarObstacleCourseEnv`,
+3 m rays over 360 degrees).
 
 Writes ``docs/envs/ray_coverage.csv``; about a minute on one core::
 
@@ -24,7 +26,8 @@ from sb3_adc_envs.lidar_course import LidarObstacleCourseEnv
 OUT = Path(__file__).resolve().parent / "ray_coverage.csv"
 #: Layout seeds of the experiment: neither training nor held-out evaluation layouts.
 LAYOUT_SEEDS = range(5_000_000, 5_000_040)
-RAY_COUNTS = (8, 12, 16, 24, 32)
+#: The lidars compared: (readings, rays per reading).
+LIDARS = ((8, 1), (12, 1), (16, 1), (24, 1), (32, 1), (24, 2), (24, 4), (24, 8))
 #: An obstacle counts when its surface is this close to the robot's centre [m].
 NEAR = 1.5
 #: An obstacle counts as thin when it is at most this wide in every direction (a post, a small box) [m].
@@ -33,14 +36,14 @@ THIN = 0.2
 
 def main() -> None:
     rng = np.random.default_rng(0)
-    envs = {n: LidarObstacleCourseEnv(course="procedural", n_rays=n) for n in RAY_COUNTS}
-    missed = {(n, kind): 0 for n in RAY_COUNTS for kind in ("thin", "all")}
+    envs = {(n, k): LidarObstacleCourseEnv(course="procedural", n_rays=n, rays_per_reading=k) for n, k in LIDARS}
+    missed = {(lidar, kind): 0 for lidar in LIDARS for kind in ("thin", "all")}
     seen_total = {"thin": 0, "all": 0}
-    lidar = {n: np.ones(n, dtype=np.float32) for n in RAY_COUNTS}
+    readings = {(n, k): np.ones(n, dtype=np.float32) for n, k in LIDARS}
     for layout_seed in LAYOUT_SEEDS:
         for env in envs.values():
             env.reset(options={"layout_seed": layout_seed})
-        course = envs[RAY_COUNTS[0]].course
+        course = envs[LIDARS[0]].course
         assert course.corridor is not None
         centre = course.corridor.centerline
         closed = np.vstack([centre, centre[:1]])
@@ -58,24 +61,27 @@ def main() -> None:
                 if not near:
                     continue
                 hits = {}
-                for n, env in envs.items():
-                    env.simulation.move_robot(x, y, pose_heading, lidar[n])
-                    hits[n] = set(env.simulation.ray_bodies)
+                for lidar, env in envs.items():
+                    env.simulation.move_robot(x, y, pose_heading, readings[lidar])
+                    hits[lidar] = set(env.simulation.ray_bodies)
                 for i in near:
                     obstacle = course.obstacles[i]
                     kinds = ["all"] + (["thin"] if max(obstacle.length, obstacle.width) <= THIN else [])
                     for kind in kinds:
                         seen_total[kind] += 1
-                        for n, env in envs.items():
-                            if env.simulation.obstacle_ids[i] not in hits[n]:
-                                missed[n, kind] += 1
+                        for lidar, env in envs.items():
+                            if env.simulation.obstacle_ids[i] not in hits[lidar]:
+                                missed[lidar, kind] += 1
     for env in envs.values():
         env.close()
-    lines = ["rays,angle between rays (deg),missed obstacles within 1.5 m (%),missed thin obstacles within 1.5 m (%)"]
-    for n in RAY_COUNTS:
-        all_rate = 100.0 * missed[n, "all"] / seen_total["all"]
-        thin_rate = 100.0 * missed[n, "thin"] / seen_total["thin"]
-        lines.append(f"{n},{360 / n:g},{all_rate:.1f},{thin_rate:.1f}")
+    lines = [
+        "rays (readings),rays per reading,rays cast,angle between rays cast (deg),"
+        "missed obstacles within 1.5 m (%),missed thin obstacles within 1.5 m (%)"
+    ]
+    for n, k in LIDARS:
+        all_rate = 100.0 * missed[(n, k), "all"] / seen_total["all"]
+        thin_rate = 100.0 * missed[(n, k), "thin"] / seen_total["thin"]
+        lines.append(f"{n},{k},{n * k},{360 / (n * k):g},{all_rate:.1f},{thin_rate:.1f}")
     OUT.write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     print(f"({seen_total['all']} obstacle sightings, {seen_total['thin']} of thin obstacles; wrote {OUT})")

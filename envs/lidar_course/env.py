@@ -27,6 +27,8 @@ TEST_LAYOUT_SEEDS = (1_000_000, 1_000_100)
 #: so that :data:`TEST_LAYOUT_SEEDS` stays unseen by every choice.
 VALIDATION_LAYOUT_SEEDS = (2_000_000, 2_000_100)
 
+#: The most rays ``rays_per_reading`` casts for each reading (each costs about 5 microseconds a step).
+MAX_RAYS_PER_READING = 16
 # Initial capacity of the path buffer (positions); it doubles when full.
 _PATH_CAPACITY = 512
 _TWO_PI = 2.0 * math.pi
@@ -83,8 +85,13 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
     :param course: A shipped course name (``"training"``, ``"unseen_narrow"``, ... see
         :func:`~sb3_adc_envs.lidar_course.course.shipped_courses`), the path of a YAML/JSON course file,
         a :class:`~sb3_adc_envs.lidar_course.course.Course`, or ``"procedural"``
-    :param n_rays: Number of lidar rays (8 in the paper)
+    :param n_rays: Number of lidar rays (8 in the paper): the lidar's readings, one observation each
     :param fov_deg: Angle the rays are spread over [deg], in ``(0, 360]``
+    :param rays_per_reading: Rays cast for each reading, 1 (the default, the paper's lidar) to
+        :data:`MAX_RAYS_PER_READING`: above 1, each reading is the nearest hit of that many rays spread evenly over
+        its sector (the angle between neighbouring readings, centred on the reading's direction), so that an
+        obstacle thinner than the gap between two readings' directions is not missed; the observation keeps one
+        value per reading
     :param max_range: Length of the rays [m]; observations are distances divided by it
     :param speed: Distance driven per step [m]
     :param max_steer_deg: Largest change of heading per step [deg] (6 in the paper); with the wheeled robot,
@@ -125,6 +132,7 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         layout_seeds: tuple[int, int] = TRAIN_LAYOUT_SEEDS,
         generator: CourseGenerator | None = None,
         robot: str = "kinematic",
+        rays_per_reading: int = 1,
     ):
         if not isinstance(course, (str, os.PathLike, Course)):
             raise TypeError(
@@ -135,6 +143,14 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
             raise ValueError(f"`n_rays` must be an integer >= 1, got {n_rays!r}.")
         if not 0.0 < fov_deg <= 360.0:
             raise ValueError(f"`fov_deg` must be in (0, 360], got {fov_deg!r}.")
+        if (
+            isinstance(rays_per_reading, bool)
+            or not isinstance(rays_per_reading, (int, np.integer))
+            or not 1 <= rays_per_reading <= MAX_RAYS_PER_READING
+        ):
+            raise ValueError(
+                f"`rays_per_reading` must be an integer in [1, {MAX_RAYS_PER_READING}], got {rays_per_reading!r}."
+            )
         for name, value in (("max_range", max_range), ("speed", speed), ("robot_radius", robot_radius)):
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"`{name}` must be a finite number > 0, got {value!r}.")
@@ -202,7 +218,17 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         self.observation_space = spaces.Box(0.0, 1.0, shape=(self.n_rays,), dtype=np.float32)
         #: Ray directions relative to the heading [rad].
         self.ray_angles = self._ray_angles(self.n_rays, self.fov)
-        self._simulation = CourseSimulation(self.course, self.robot_radius, self.ray_angles, self.max_range, robot)
+        #: Rays cast for each reading.
+        self.rays_per_reading = int(rays_per_reading)
+        self._simulation = CourseSimulation(
+            self.course,
+            self.robot_radius,
+            self.ray_angles,
+            self.max_range,
+            robot,
+            rays_per_reading=self.rays_per_reading,
+            sector=self._sector(self.n_rays, self.fov),
+        )
         self._renderer: TopDownRenderer | None = None
         self._progress = self._loop_progress(self.course)
 
@@ -213,6 +239,13 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         self._distance = 0.0
         self._path = np.empty((_PATH_CAPACITY, 2))
         self._path_length = 0
+
+    @staticmethod
+    def _sector(n_rays: int, fov: float) -> float:
+        # The angle between neighbouring readings (the whole field of view for one reading).
+        if math.isclose(fov, 2.0 * math.pi):
+            return 2.0 * math.pi / n_rays
+        return fov / (n_rays - 1) if n_rays > 1 else fov
 
     @staticmethod
     def _ray_angles(n_rays: int, fov: float) -> np.ndarray:

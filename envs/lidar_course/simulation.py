@@ -66,16 +66,29 @@ class CourseSimulation:
     Every call passes this instance's ``physicsClientId``: several simulations run side by side in one
     process. :meth:`close` disconnects the client; it is safe to call twice and runs on garbage collection.
 
+    With ``rays_per_reading`` above 1, each of the lidar's readings is the nearest hit of that many rays spread
+    evenly over its sector (``sector`` wide, centred on the reading's direction), all cast in the same
+    ``rayTestBatch``.
+
     :param course: The course to build
     :param robot_radius: Radius of the robot's cylinder [m]
-    :param ray_angles: ``(n_rays,)`` directions of the rays relative to the robot's heading [rad]
+    :param ray_angles: ``(n_rays,)`` directions of the lidar's readings relative to the robot's heading [rad]
     :param max_range: Length of the rays [m]
     :param robot: One of :data:`ROBOTS`
+    :param rays_per_reading: Rays cast for each reading (1: one ray along the reading's direction)
+    :param sector: Angle each reading's rays are spread over [rad] (used when ``rays_per_reading`` is above 1)
     :raises ValueError: if ``robot`` is not one of :data:`ROBOTS`, or the wheeled robot's radius is too small
     """
 
     def __init__(
-        self, course: Course, robot_radius: float, ray_angles: np.ndarray, max_range: float, robot: str = "kinematic"
+        self,
+        course: Course,
+        robot_radius: float,
+        ray_angles: np.ndarray,
+        max_range: float,
+        robot: str = "kinematic",
+        rays_per_reading: int = 1,
+        sector: float = 0.0,
     ):
         if robot not in ROBOTS:
             raise ValueError(f"`robot` must be one of {ROBOTS}, got {robot!r}.")
@@ -90,9 +103,14 @@ class CourseSimulation:
         self._wall_mask = _ALL_GROUPS if self.wheeled is None else _RAY_GROUP
         self._client: int | None = pybullet.connect(pybullet.DIRECT)
 
-        #: ``(n_rays, 2)`` ray vectors in the robot's frame (unit direction times ``max_range``).
+        #: ``(n_rays, 2)`` vectors of the lidar's readings in the robot's frame (unit direction times ``max_range``).
         self.ray_vectors = max_range * np.column_stack([np.cos(ray_angles), np.sin(ray_angles)])
-        n_rays = len(ray_angles)
+        self.rays_per_reading = int(rays_per_reading)
+        # The rays cast, reading after reading: each reading's rays at the middles of equal parts of its sector.
+        offsets = (np.arange(self.rays_per_reading) + 0.5) / self.rays_per_reading * sector - sector / 2.0
+        cast_angles = (np.asarray(ray_angles)[:, None] + (offsets if self.rays_per_reading > 1 else 0.0)).ravel()
+        self._cast_vectors = max_range * np.column_stack([np.cos(cast_angles), np.sin(cast_angles)])
+        n_rays = len(cast_angles)
         self._ray_from = np.full((n_rays, 3), SENSOR_HEIGHT)
         self._ray_to = np.full((n_rays, 3), SENSOR_HEIGHT)
         self._rotation = np.empty((2, 2))
@@ -249,22 +267,35 @@ class CourseSimulation:
         rotation[1, 0] = -sin_heading
         rotation[1, 1] = cos_heading
         ray_to = self._ray_to
-        np.matmul(self.ray_vectors, rotation, out=ray_to[:, :2])
+        np.matmul(self._cast_vectors, rotation, out=ray_to[:, :2])
         ray_to[:, 0] += x
         ray_to[:, 1] += y
         ray_from = self._ray_from
         ray_from[:, 0] = x
         ray_from[:, 1] = y
         hits = pybullet.rayTestBatch(ray_from, ray_to, collisionFilterMask=self._wall_group, physicsClientId=client)
-        for i, hit in enumerate(hits):
-            lidar_out[i] = hit[2]
+        per_reading = self.rays_per_reading
+        if per_reading == 1:
+            for i, hit in enumerate(hits):
+                lidar_out[i] = hit[2]
+        else:
+            # Each reading: the nearest of its rays' hits (a ray that hits nothing has fraction 1).
+            for i in range(len(lidar_out)):
+                lidar_out[i] = min(hit[2] for hit in hits[i * per_reading : (i + 1) * per_reading])
         self._hits = hits
         return self._touches_wall(x, y)
 
     @property
     def ray_bodies(self) -> list[int]:
-        """Body id each ray of the last :meth:`move_robot` hit (a wall's, an obstacle's, or -1 for none)."""
-        return [int(hit[0]) for hit in self._hits]
+        """
+        Body id each reading of the last :meth:`move_robot` or :meth:`drive_robot` met (a wall's, an obstacle's,
+        or -1 for none): with several rays per reading, the body of its nearest hit.
+        """
+        per_reading = self.rays_per_reading
+        if per_reading == 1:
+            return [int(hit[0]) for hit in self._hits]
+        hits = self._hits
+        return [int(min(hits[i : i + per_reading], key=lambda hit: hit[2])[0]) for i in range(0, len(hits), per_reading)]
 
     def _touches_wall(self, x: float, y: float) -> bool:
         return next(self._touched_bodies(x, y), None) is not None
@@ -289,6 +320,17 @@ class CourseSimulation:
                 ):
                     yield body
 
+    def touched_bodies(self, x: float, y: float) -> list[int]:
+        """
+        The body ids of the walls and obstacles that the robot, where the last :meth:`move_robot` or
+        :meth:`drive_robot` left it at ``(x, y)``, touches (ids of :attr:`wall_ids` and :attr:`obstacle_ids`, the
+        ids :attr:`ray_bodies` reports). Empty without a collision. For diagnostics, as :meth:`touching`.
+
+        :param x: The robot's position [m]
+        :param y: The robot's position [m]
+        """
+        return list(self._touched_bodies(x, y))
+
     def touching(self, x: float, y: float) -> list[str]:
         """
         What the robot, where the last :meth:`move_robot` or :meth:`drive_robot` left it at ``(x, y)``, touches:
@@ -301,7 +343,7 @@ class CourseSimulation:
         """
         first_obstacle = self.obstacle_ids[0] if self.obstacle_ids else None
         names = []
-        for body in self._touched_bodies(x, y):
+        for body in self.touched_bodies(x, y):
             if first_obstacle is None or body < first_obstacle:
                 names.append("wall")
             else:
