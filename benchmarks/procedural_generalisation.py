@@ -8,7 +8,8 @@ each final model is scored on layouts and courses it never saw:
   courses included), ``--course-episodes`` episodes each from a start jittered by 0.1 m and 10 degrees.
 
 An episode is a success when it ends without a collision (``info["is_success"]``: 500 steps driven); a failed
-episode records what the robot hit (a wall, a box, a cylinder or a wall stub: ``hit_*`` in ``success.csv``). Per
+episode records what the robot hit (a wall, a box, a cylinder or a wall stub: ``hit_*`` in ``success.csv``) and
+whether the lidar showed the obstacle it hit in time (``hit_unseen``, see ``SIGHTING``). Per
 run the success rate of each test set; per algorithm and test set, the IQM and mean of the runs' rates with 95%
 stratified-bootstrap CIs (rliable), and the probability that ADC's rate exceeds each other algorithm's. The paths
 of every run on the first ``--trajectory-layouts`` held-out layouts are kept (``trajectories.csv.gz``) and drawn.
@@ -53,11 +54,11 @@ import argparse
 import json
 import os
 import time
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import gymnasium as gym
 import numpy as np
@@ -92,6 +93,12 @@ TRAJECTORIES_CSV = "trajectories.csv.gz"
 #: What a failed episode can have hit (``CourseSimulation.touching``): ``success.csv`` counts, per test set, the
 #: failed episodes that ended touching each (an episode ending against a wall and a stub counts for both).
 HITS = ("wall", "box", "cylinder", "stub")
+#: When a failed episode's obstacle counts as unseen (``hit_unseen`` in ``success.csv``): no lidar ray hit it in the
+#: scans from ``SIGHTING[1]`` to ``SIGHTING[0]`` steps before the contact, the metre of driving before it but the
+#: last 0.5 m. Turning at its steering limit (6 degrees a step) the kinematic robot moves 0.21 m sideways in 6 steps,
+#: its radius and a 6 cm post, and 0.52 m in 10: an obstacle first shown in the last 5 scans can hardly be avoided,
+#: and a policy without memory cannot act on one it saw earlier and then lost between its rays.
+SIGHTING = (6, 10)
 #: What ``--model`` scores, as the metadata says it.
 MODELS = {
     "final": "each run's final model",
@@ -143,29 +150,50 @@ def read_configs(path: str) -> dict[str, dict[str, Any]]:
     return content
 
 
-def episode_outcome(model: Any, env: gym.Env, **reset: Any) -> tuple[bool, list[str]]:
+class EpisodeOutcome(NamedTuple):
+    """One scored episode (:func:`episode_outcome`)."""
+
+    #: Whether it ended without a collision
+    success: bool
+    #: What the robot hit: the kinds of :data:`HITS` it touches where it stopped, each once (empty on success)
+    hit: list[str]
+    #: Whether it ended against an obstacle (not a wall of the corridor) that the lidar did not show it in time
+    #: (:data:`SIGHTING`)
+    unseen: bool = False
+
+
+def episode_outcome(model: Any, env: gym.Env, **reset: Any) -> EpisodeOutcome:
     """
-    Run one deterministic episode: whether it ended without a collision and, if not, what the robot hit (the
-    kinds of :data:`HITS` it touches where it stopped, each once).
+    Run one deterministic episode: whether it ended without a collision and, if not, what the robot hit and
+    whether an obstacle it hit was unseen (no ray of the scans from ``SIGHTING[1]`` to ``SIGHTING[0]`` steps
+    before the contact hit it).
     """
     observation, _ = env.reset(**reset)
+    course_env: Any = env.unwrapped
+    simulation = course_env.simulation
+    late, early = SIGHTING
+    # The bodies each scan's rays hit, the reset's first; the last `early + 1` are all the window needs.
+    scans: deque[set[int]] = deque([set(simulation.ray_bodies)], maxlen=early + 1)
     while True:
         action, _ = model.predict(observation, deterministic=True)
         observation, _, terminated, truncated, info = env.step(action)
+        scans.append(set(simulation.ray_bodies))
         if terminated or truncated:
             if info["is_success"]:
-                return True, []
-            course_env = env.unwrapped
-            x, y, _ = course_env.pose  # type: ignore[attr-defined]
-            return False, sorted(set(course_env.simulation.touching(x, y)))  # type: ignore[attr-defined]
+                return EpisodeOutcome(True, [])
+            x, y, _ = course_env.pose
+            obstacles = set(simulation.touched_bodies(x, y)) & set(simulation.obstacle_ids)
+            # scans[-1] is the scan at the contact, scans[-1 - k] the one k steps before it.
+            seen = set().union(*list(scans)[: len(scans) - late])
+            return EpisodeOutcome(False, sorted(set(simulation.touching(x, y))), bool(obstacles - seen))
 
 
 def episode_success(model: Any, env: gym.Env, **reset: Any) -> bool:
     """Run one deterministic episode; whether it ended without a collision."""
-    return episode_outcome(model, env, **reset)[0]
+    return episode_outcome(model, env, **reset).success
 
 
-def layout_outcome(model: Any, env: gym.Env, layout_seed: int) -> tuple[bool, list[str]]:
+def layout_outcome(model: Any, env: gym.Env, layout_seed: int) -> EpisodeOutcome:
     """
     :func:`episode_outcome` on one procedural layout, the episode seeded by its layout seed (the noisy variants'
     observation noise too), so that scoring the same model again gives the same result.
@@ -175,7 +203,7 @@ def layout_outcome(model: Any, env: gym.Env, layout_seed: int) -> tuple[bool, li
 
 def layout_success(model: Any, env: gym.Env, layout_seed: int) -> bool:
     """:func:`layout_outcome`'s success alone."""
-    return layout_outcome(model, env, layout_seed)[0]
+    return layout_outcome(model, env, layout_seed).success
 
 
 def load_for_scoring(
@@ -281,24 +309,28 @@ def score_policy(
 
     :param wrap: The wrappers the policy was trained with (a run's ``config.wrap_env``)
     :param env_kwargs: ``gym.make`` keywords of every test environment
-    :return: One row per test set (``test_set``, ``episodes``, ``successes``, ``success_rate`` and ``hit_{kind}``
-        for each of :data:`HITS`) and the paths
+    :return: One row per test set (``test_set``, ``episodes``, ``successes``, ``success_rate``, ``hit_{kind}``
+        for each of :data:`HITS`, ``hit_obstacle``: the failed episodes that ended against an obstacle, and
+        ``hit_unseen``: those of them whose obstacle the lidar did not show in time, see :data:`SIGHTING`) and the
+        paths
     """
 
-    def row(test_set: str, outcomes: list[tuple[bool, list[str]]]) -> dict[str, Any]:
-        successes = [success for success, _ in outcomes]
+    def row(test_set: str, outcomes: list[EpisodeOutcome]) -> dict[str, Any]:
+        successes = [outcome.success for outcome in outcomes]
         return {
             "test_set": test_set,
             "episodes": len(successes),
             "successes": int(sum(successes)),
             "success_rate": float(np.mean(successes)),
-            **{f"hit_{kind}": sum(kind in hit for _, hit in outcomes) for kind in HITS},
+            **{f"hit_{kind}": sum(kind in outcome.hit for outcome in outcomes) for kind in HITS},
+            "hit_obstacle": sum(bool(set(outcome.hit) - {"wall"}) for outcome in outcomes),
+            "hit_unseen": sum(outcome.unseen for outcome in outcomes),
         }
 
     rows = []
     env = wrap(gym.make(env_id, **{**env_kwargs, "layout_seeds": TEST_LAYOUT_SEEDS}))
     first = TEST_LAYOUT_SEEDS[0]
-    outcomes: list[tuple[bool, list[str]]] = []
+    outcomes: list[EpisodeOutcome] = []
     paths = []
     for k in range(n_layouts):
         outcomes.append(layout_outcome(policy, env, first + k))
@@ -311,7 +343,7 @@ def score_policy(
                         "step": np.arange(len(path)),
                         "x": path[:, 0].round(3),
                         "y": path[:, 1].round(3),
-                        "success": outcomes[-1][0],
+                        "success": outcomes[-1].success,
                     }
                 )
             )

@@ -11,9 +11,11 @@ Per grid (a folder of ``benchmarks/results/procedural_generalisation/`` with a `
   course-file episodes without a collision, then the IQM and mean over runs with 95% CIs (rliable, the grid's
   bootstrap replications, seed 0) and how many runs reach 0.90.
 
-The reference planner (``reference_planner.py``) adds one row per observation and robot: one deterministic
-policy, so a rate without a CI. Writes ``summary.csv`` and ``summary.md`` beside the grids and the figure
-``docs/_static/benchmarks/procedural_summary.png``.
+The reference planner (``reference_planner.py``) adds one row per observation, robot and lidar: one
+deterministic policy, so a rate without a CI. For the pairs of grids in ``COMPARISONS`` (one change between
+them, trained on the same seeds), the probability that a run of the first beats a run of the second on each test
+set (rliable, 95% stratified-bootstrap CI): ``comparisons.csv`` and a table in ``summary.md``. Writes
+``summary.csv`` and ``summary.md`` beside the grids and the figure ``docs/_static/benchmarks/procedural_summary.png``.
 
 Usage::
 
@@ -34,7 +36,7 @@ from procedural_generalisation import ALGOS, DOCS_STATIC, HELD_OUT, RESULTS_DIR,
 from procedural_generalisation import HITS as HIT_KINDS
 
 from sb3_adc.experiment.plots import algo_colors, display_name
-from sb3_adc.experiment.statistics import FINAL_PERFORMANCE_COLUMNS, final_performance
+from sb3_adc.experiment.statistics import FINAL_PERFORMANCE_COLUMNS, final_performance, probability_of_improvement
 from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS
 
 FIGURE = DOCS_STATIC / "procedural_summary.png"
@@ -46,6 +48,18 @@ STATISTICS = [column for column in FINAL_PERFORMANCE_COLUMNS if column not in ("
 #: What failed episodes hit (``success.csv``'s columns), summed over the runs; empty for grids scored before the
 #: scoring recorded it.
 HITS = [f"hit_{kind}" for kind in HIT_KINDS]
+#: Of the failed episodes, those that ended against an obstacle and those whose obstacle the lidar did not show in
+#: time (``procedural_generalisation.SIGHTING``); empty for grids scored before the scoring recorded it.
+SIGHTINGS = ["hit_obstacle", "hit_unseen"]
+#: Pairs of grids to compare run against run: (changed, control), the same algorithm, seeds and test sets.
+COMPARISONS = [
+    ("LidarObstacleCourse-v1_n_step_150k_sectors_validation", "LidarObstacleCourse-v1_n_step_150k_validation"),
+]
+#: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
+POSTS = "unseen_posts"
+#: Bootstrap replications of the comparisons (the grids' own tables use 5000).
+COMPARISON_REPS = 5000
+COMPARISON_COLUMNS = ["changed", "control", "test_set", "changed_mean", "control_mean", "probability", "ci_low", "ci_high"]
 COLUMNS = [
     "grid",
     "env",
@@ -59,6 +73,7 @@ COLUMNS = [
     "runs_at_target",
     "failed_episodes",
     *HITS,
+    *SIGHTINGS,
 ]
 
 
@@ -73,12 +88,15 @@ def unseen_files(success: pd.DataFrame) -> pd.DataFrame:
 
 
 def failures(rows: pd.DataFrame) -> dict[str, float]:
-    """The failed episodes of ``rows`` (one test set or several) and what they hit, summed; hits NaN if unrecorded."""
-    recorded = set(HITS) <= set(rows.columns)
-    return {
-        "failed_episodes": int(rows["episodes"].sum() - rows["successes"].sum()),
-        **{hit: int(rows[hit].sum()) if recorded else float("nan") for hit in HITS},
-    }
+    """
+    The failed episodes of ``rows`` (one test set or several), what they hit and whether the lidar showed the
+    obstacle in time, summed; NaN where the scoring did not record it.
+    """
+    counts: dict[str, float] = {"failed_episodes": int(rows["episodes"].sum() - rows["successes"].sum())}
+    for columns in (HITS, SIGHTINGS):
+        recorded = set(columns) <= set(rows.columns)
+        counts |= {column: int(rows[column].sum()) if recorded else float("nan") for column in columns}
+    return counts
 
 
 def course_file_rates(success: pd.DataFrame) -> pd.DataFrame:
@@ -130,15 +148,16 @@ def summarise_grid(folder: Path) -> pd.DataFrame:
 
 
 def planner_rows(results: Path) -> pd.DataFrame:
-    """The reference planner's rates on both test sets, one row per observation and robot."""
+    """The reference planner's rates on both test sets, one row per observation, robot and lidar."""
     planner = pd.read_csv(results / "reference_planner.csv")
     rows = []
-    for (env, robot), group in planner.groupby(["env", "robot"], sort=True):
+    for (env, robot, rays_per_reading), group in planner.groupby(["env", "robot", "rays_per_reading"], sort=True):
+        lidar = "" if rays_per_reading == 1 else f", {rays_per_reading} rays per reading"
         for test_set, episodes in ((HELD_OUT, group[group["test_set"] == HELD_OUT]), (COURSE_FILES, unseen_files(group))):
             rate = episodes["successes"].sum() / episodes["episodes"].sum()
             rows.append(
                 {
-                    "grid": f"reference_planner ({'noisy' if 'Noisy' in env else 'clean'}, {robot})",
+                    "grid": f"reference_planner ({'noisy' if 'Noisy' in env else 'clean'}, {robot}{lidar})",
                     "env": env,
                     "robot": robot,
                     "model": "planner",
@@ -151,6 +170,71 @@ def planner_rows(results: Path) -> pd.DataFrame:
                 }
             )
     return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def run_rates(folder: Path) -> pd.DataFrame:
+    """
+    Per run of a grid (``algo``, ``seed``), its success rate (``mean_return``, the statistics' column) on each
+    comparison test set (``env``): the held-out layouts, the unseen course files pooled, the posts course.
+    """
+    success = pd.read_csv(folder / "success.csv")
+    held_out = success[success["test_set"] == HELD_OUT][["algo", "seed", "success_rate"]].assign(env=HELD_OUT)
+    files = course_file_rates(success)[["algo", "seed", "success_rate"]].assign(env=COURSE_FILES)
+    posts = success[success["test_set"] == POSTS][["algo", "seed", "success_rate"]].assign(env=POSTS)
+    rates = pd.concat([held_out, files, posts], ignore_index=True)
+    return rates.rename(columns={"success_rate": "mean_return"})
+
+
+def compare(results: Path, pairs: list[tuple[str, str]], reps: int) -> pd.DataFrame:
+    """
+    For each pair of committed grids (changed, control), per test set of :func:`run_rates`: the mean success of
+    each grid's runs and the probability that a run of the changed grid beats one of the control (ties count one
+    half), with its 95% CI. Pairs whose grids are not both committed are left out.
+    """
+    rows = []
+    for changed, control in pairs:
+        if not ((results / changed / "success.csv").exists() and (results / control / "success.csv").exists()):
+            continue
+        rates = pd.concat(
+            [run_rates(results / changed).assign(algo="changed"), run_rates(results / control).assign(algo="control")]
+        )
+        for test_set in (HELD_OUT, COURSE_FILES, POSTS):
+            table = rates[rates["env"] == test_set]
+            improvement = probability_of_improvement(table, reps=reps).iloc[0]
+            means = table.groupby("algo")["mean_return"].mean()
+            rows.append(
+                {
+                    "changed": changed,
+                    "control": control,
+                    "test_set": test_set,
+                    "changed_mean": float(means["changed"]),
+                    "control_mean": float(means["control"]),
+                    "probability": float(improvement["probability"]),
+                    "ci_low": float(improvement["ci_low"]),
+                    "ci_high": float(improvement["ci_high"]),
+                }
+            )
+    return pd.DataFrame(rows, columns=COMPARISON_COLUMNS)
+
+
+def comparisons_markdown(comparisons: pd.DataFrame) -> str:
+    """The table of the comparisons for ``summary.md`` (empty when there is none)."""
+    if comparisons.empty:
+        return ""
+    lines = [
+        "",
+        "Pairs of grids with one change between them, run against run (the probability that a run of the changed grid "
+        "has the higher success rate, ties one half, with its 95% stratified-bootstrap CI):",
+        "",
+        "| changed | control | test set | mean success, changed | mean success, control | P(changed > control) [95% CI] |",
+        "|---|---|---|---:|---:|---|",
+    ]
+    for row in comparisons.itertuples(index=False):
+        lines.append(
+            f"| {row.changed} | {row.control} | {row.test_set} | {row.changed_mean:.2f} | {row.control_mean:.2f} "
+            f"| {row.probability:.2f} [{row.ci_low:.2f}, {row.ci_high:.2f}] |"
+        )
+    return "\n".join(lines) + "\n"
 
 
 def held_out_obstacles(env_id: str = "sb3_adc/LidarObstacleCourse-v1", n_layouts: int = 100) -> dict[str, int]:
@@ -194,14 +278,20 @@ def markdown(summary: pd.DataFrame, obstacles: dict[str, int]) -> str:
     lines += [
         "",
         "What the failed episodes ended against, summed over the runs (an episode against two kinds counts for both; "
-        "grids scored before this was recorded are left out):",
+        "grids scored before this was recorded are left out), and how many ended against an obstacle (not a wall of "
+        "the corridor) and against one the lidar did not show in time (no reading on it from 10 to 6 steps before "
+        "the contact; '-': not recorded when the grid was scored):",
         "",
-        "| grid | algorithm | test set | failed episodes | wall | box | cylinder | wall stub |",
-        "|---|---|---|---:|---:|---:|---:|---:|",
+        "| grid | algorithm | test set | failed episodes | wall | box | cylinder | wall stub | obstacle | obstacle unseen |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for row in summary.dropna(subset=HITS).itertuples(index=False):
         counts = " | ".join(str(int(getattr(row, hit))) for hit in HITS)
-        lines.append(f"| {row.grid} | {display_name(row.algo)} | {row.test_set} | {row.failed_episodes} | {counts} |")
+        recorded = [getattr(row, column) for column in SIGHTINGS]
+        sightings = " | ".join("-" if pd.isna(count) else str(int(count)) for count in recorded)
+        lines.append(
+            f"| {row.grid} | {display_name(row.algo)} | {row.test_set} | {row.failed_episodes} | {counts} | {sightings} |"
+        )
     held = ", ".join(f"{count} {kind}{'es' if kind == 'box' else 's'}" for kind, count in obstacles.items())
     lines += ["", f"The 100 held-out layouts hold {held} (each run drives one episode per layout)."]
     return "\n".join(lines) + "\n"
@@ -244,7 +334,9 @@ def plot(summary: pd.DataFrame, path: Path) -> None:
 def main() -> None:
     summary = summarise(RESULTS_DIR)
     summary.to_csv(RESULTS_DIR / "summary.csv", index=False)
-    table = markdown(summary, held_out_obstacles())
+    comparisons = compare(RESULTS_DIR, COMPARISONS, reps=COMPARISON_REPS)
+    comparisons.to_csv(RESULTS_DIR / "comparisons.csv", index=False)
+    table = markdown(summary, held_out_obstacles()) + comparisons_markdown(comparisons)
     (RESULTS_DIR / "summary.md").write_text(table)
     FIGURE.parent.mkdir(parents=True, exist_ok=True)
     plot(summary, FIGURE)

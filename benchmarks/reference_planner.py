@@ -9,7 +9,8 @@ Protocol, as for the learners: the planner's parameters (``horizon`` and ``margi
 the validation layouts (``VALIDATION_LAYOUT_SEEDS``, ``--layouts`` of them, kinematic robot, clean observations);
 the chosen planner is then scored once on the test sets of ``procedural_generalisation.py`` (the 100 held-out
 layouts and every course file, ``--course-episodes`` jittered episodes each, seeded alike) for each observation
-variant and robot. The planner is deterministic: one score per test set.
+variant and robot, and with a lidar of four rays per reading (``VARIANTS``). The planner is deterministic: one
+score per test set.
 
 Writes ``benchmarks/results/procedural_generalisation/reference_planner_selection.csv`` (the validation grid),
 ``reference_planner.csv`` (one row per variant and test set), ``reference_planner.md`` and
@@ -41,20 +42,22 @@ from sb3_adc_envs.lidar_course.planner import LidarLocalPlanner
 
 #: The planner parameters tried on the validation layouts.
 GRID: dict[str, list[Any]] = {"horizon": [25, 40], "margin": [0.2, 0.4]}
-#: Observation variant and robot of each test.
+#: Observation variant, robot and rays per lidar reading of each test: the four of the learners' grids, then the
+#: clean kinematic one with four rays per reading (``rays_per_reading``, docs/envs/ray_coverage.py).
 VARIANTS = [
-    ("sb3_adc/LidarObstacleCourse-v1", "kinematic"),
-    ("sb3_adc/LidarObstacleCourseNoisy-v1", "kinematic"),
-    ("sb3_adc/LidarObstacleCourse-v1", "wheeled"),
-    ("sb3_adc/LidarObstacleCourseNoisy-v1", "wheeled"),
+    ("sb3_adc/LidarObstacleCourse-v1", "kinematic", 1),
+    ("sb3_adc/LidarObstacleCourseNoisy-v1", "kinematic", 1),
+    ("sb3_adc/LidarObstacleCourse-v1", "wheeled", 1),
+    ("sb3_adc/LidarObstacleCourseNoisy-v1", "wheeled", 1),
+    ("sb3_adc/LidarObstacleCourse-v1", "kinematic", 4),
 ]
 SELECTION_ENV = VARIANTS[0]
 
 
 def validate(params: dict[str, Any], n_layouts: int) -> dict[str, Any]:
     """The success rate of the planner with ``params`` on the first ``n_layouts`` validation layouts."""
-    env_id, robot = SELECTION_ENV
-    env = gym.make(env_id, robot=robot, layout_seeds=VALIDATION_LAYOUT_SEEDS)
+    env_id, robot, rays_per_reading = SELECTION_ENV
+    env = gym.make(env_id, robot=robot, rays_per_reading=rays_per_reading, layout_seeds=VALIDATION_LAYOUT_SEEDS)
     planner = LidarLocalPlanner.for_env(env, **params)
     first = VALIDATION_LAYOUT_SEEDS[0]
     successes = [layout_success(planner, env, first + k) for k in range(n_layouts)]
@@ -63,30 +66,36 @@ def validate(params: dict[str, Any], n_layouts: int) -> dict[str, Any]:
 
 
 def score_variant(
-    env_id: str, robot: str, params: dict[str, Any], courses: list[str], course_episodes: int, n_layouts: int
+    env_id: str,
+    robot: str,
+    rays_per_reading: int,
+    params: dict[str, Any],
+    courses: list[str],
+    course_episodes: int,
+    n_layouts: int,
 ) -> list[dict[str, Any]]:
-    """The chosen planner's success rate on every test set of one observation variant and robot."""
-    kwargs: dict[str, Any] = {"robot": robot}
+    """The chosen planner's success rate on every test set of one observation variant, robot and lidar."""
+    kwargs: dict[str, Any] = {"robot": robot, "rays_per_reading": rays_per_reading}
     sensor = gym.make(env_id, **kwargs)
     planner = LidarLocalPlanner.for_env(sensor, **params)
     sensor.close()
     rows, _ = score_policy(planner, lambda env: env, env_id, kwargs, courses, course_episodes, n_layouts, 0)
-    return [{"env": env_id, "robot": robot, **row} for row in rows]
+    return [{"env": env_id, "robot": robot, "rays_per_reading": rays_per_reading, **row} for row in rows]
 
 
 def markdown(scores: pd.DataFrame) -> str:
-    """The table of ``reference_planner.md``: success per observation variant and robot, by test set."""
+    """The table of ``reference_planner.md``: success per observation variant, robot and lidar, by test set."""
     lines = [
-        "| observations | robot | held-out layouts | course files (each) | course files (all episodes) |",
-        "|---|---|---:|---|---:|",
+        "| observations | robot | rays per reading | held-out layouts | course files (each) | course files (all episodes) |",
+        "|---|---|---:|---:|---|---:|",
     ]
-    for (env_id, robot), frame in scores.groupby(["env", "robot"], sort=False):
+    for (env_id, robot, rays_per_reading), frame in scores.groupby(["env", "robot", "rays_per_reading"], sort=False):
         held_out = frame[frame["test_set"] == HELD_OUT].iloc[0]
         files = frame[frame["test_set"] != HELD_OUT]
         each = ", ".join(f"{row.test_set} {row.success_rate:.2f}" for row in files.itertuples(index=False))
         overall = files["successes"].sum() / files["episodes"].sum()
         noise = "noisy" if "Noisy" in env_id else "clean"
-        lines.append(f"| {noise} | {robot} | {held_out.success_rate:.2f} | {each} | {overall:.2f} |")
+        lines.append(f"| {noise} | {robot} | {rays_per_reading} | {held_out.success_rate:.2f} | {each} | {overall:.2f} |")
     return "\n".join(lines) + "\n"
 
 
@@ -117,7 +126,7 @@ def main() -> None:
         chosen = grid[int(selection["success_rate"].to_numpy().argmax())]
         print(selection.to_string(index=False), f"\nchosen: {chosen}", flush=True)
         start = time.perf_counter()
-        jobs = [(env_id, robot, chosen, courses, course_episodes, n_layouts) for env_id, robot in VARIANTS]
+        jobs = [(*variant, chosen, courses, course_episodes, n_layouts) for variant in VARIANTS]
         tests = list(pool.map(score_variant, *zip(*jobs, strict=True)))
         test_s = round(time.perf_counter() - start, 1)
     selection.to_csv(output / "reference_planner_selection.csv", index=False)
@@ -128,7 +137,7 @@ def main() -> None:
         "planner": "sb3_adc_envs.lidar_course.planner.LidarLocalPlanner",
         "grid": GRID,
         "chosen": chosen,
-        "selection": {"env": SELECTION_ENV[0], "robot": SELECTION_ENV[1]},
+        "selection": {"env": SELECTION_ENV[0], "robot": SELECTION_ENV[1], "rays_per_reading": SELECTION_ENV[2]},
         "validation_layouts": [VALIDATION_LAYOUT_SEEDS[0], VALIDATION_LAYOUT_SEEDS[0] + n_validation - 1],
         "held_out_layouts": [TEST_LAYOUT_SEEDS[0], TEST_LAYOUT_SEEDS[0] + n_layouts - 1],
         "courses": courses,

@@ -83,8 +83,9 @@ def test_committed_reference_planner_was_chosen_on_validation_and_rebuilds(monke
     n_layouts = TEST_LAYOUT_SEEDS[1] - TEST_LAYOUT_SEEDS[0]
     assert metadata["held_out_layouts"] == [TEST_LAYOUT_SEEDS[0], TEST_LAYOUT_SEEDS[1] - 1]
     variants = [tuple(variant) for variant in reference_planner.VARIANTS]
-    assert list(dict.fromkeys(scores[["env", "robot"]].itertuples(index=False, name=None))) == variants
-    for _, frame in scores.groupby(["env", "robot"]):
+    variant_columns = ["env", "robot", "rays_per_reading"]
+    assert list(dict.fromkeys(scores[variant_columns].itertuples(index=False, name=None))) == variants
+    for _, frame in scores.groupby(variant_columns):
         assert list(frame["test_set"]) == ["held-out layouts", *courses]
         assert list(frame["episodes"]) == [n_layouts] + [metadata["course_episodes"]] * len(courses)
     assert (scores["success_rate"] == scores["successes"] / scores["episodes"]).all()

@@ -131,16 +131,57 @@ def test_scoring_counts_what_each_failed_episode_hit(scripts):
         # Every failure ended touching something; no kind is counted more often than there were failures.
         assert sum(hits) >= failures > 0
         assert max(hits) <= failures
+        assert row["hit_unseen"] <= row["hit_obstacle"] <= failures
+        assert row["hit_obstacle"] >= max(row["hit_box"], row["hit_cylinder"], row["hit_stub"])
     assert held_out["hit_wall"] >= 1
-    # Straight ahead of the start: a post (6 cm radius) on a straight, then a box across the corridor's middle.
+    # Straight ahead of the start: a post (6 cm radius) on a straight, then a box across the corridor's middle,
+    # both in ray 0's line from the start, 3 m before them: seen in time.
     for obstacle, hit in [
         ({"shape": "cylinder", "position": [6, 0], "radius": 0.06}, ["cylinder"]),
         ({"shape": "box", "position": [6, 0], "size": [0.3, 0.3]}, ["box"]),
     ]:
         course = course_from_dict({**LOOP, "obstacles": [obstacle]})
         env = LidarObstacleCourseEnv(course=course)
-        assert procedural.episode_outcome(Straight(), env) == (False, hit)
+        assert procedural.episode_outcome(Straight(), env) == (False, hit, False)
         env.close()
+    # Without an obstacle the robot ends against the corridor's wall: no obstacle to have seen.
+    env = LidarObstacleCourseEnv(course=course_from_dict(LOOP))
+    assert procedural.episode_outcome(Straight(), env) == (False, ["wall"], False)
+    env.close()
+
+
+@pytest.mark.parametrize(
+    ("offset", "radius", "n_rays", "unseen"),
+    [
+        # A 5 cm post 12 cm beside the robot's straight line, touching its side: the 8 rays' first diagonal steps past
+        # it between two scans (no ray meets it before the contact), the 24 rays' first meets it 5 steps before:
+        # too late either way.
+        (0.12, 0.05, 8, True),
+        (0.12, 0.05, 24, True),
+        # A 2 cm post 16 cm beside it: the 24 rays meet it 6 steps before the contact, just in time.
+        (0.16, 0.02, 24, False),
+    ],
+)
+def test_an_obstacle_is_unseen_when_no_ray_meets_it_while_it_can_be_avoided(scripts, offset, radius, n_rays, unseen):
+    procedural, _ = scripts
+    post = {"shape": "cylinder", "position": [6, offset], "radius": radius}
+    env = LidarObstacleCourseEnv(course=course_from_dict({**LOOP, "obstacles": [post]}), n_rays=n_rays)
+    assert procedural.episode_outcome(Straight(), env) == (False, ["cylinder"], unseen)
+    # The same episode step by step: the scans before the contact in which a ray met the post.
+    post_id = env.simulation.obstacle_ids[0]
+    env.reset()
+    sightings = []
+    for step in range(1, 40):
+        _, _, terminated, _, _ = env.step(np.zeros(1, dtype=np.float32))
+        if terminated:
+            break
+        if post_id in env.simulation.ray_bodies:
+            sightings.append(step)
+    before = [step - sighting for sighting in sightings]
+    late, early = procedural.SIGHTING
+    assert unseen == (not any(late <= steps <= early for steps in before))
+    assert (n_rays == 8) == (not before)
+    env.close()
 
 
 def test_the_training_record_follows_the_invocations_that_trained(scripts, tmp_path):

@@ -72,9 +72,46 @@ def test_held_out_rows_are_the_grids_own_statistics_and_counts(summary_module, r
 
 def test_failures_sum_the_hits_and_leave_unrecorded_grids_empty(summary_module):
     hits = {"hit_wall": [2, 0], "hit_box": [0, 0], "hit_cylinder": [1, 0], "hit_stub": [1, 0]}
-    recorded = pd.DataFrame({"episodes": [10, 10], "successes": [7, 10], **hits})
+    sightings = {"hit_obstacle": [2, 0], "hit_unseen": [1, 0]}
+    recorded = pd.DataFrame({"episodes": [10, 10], "successes": [7, 10], **hits, **sightings})
     expected = {"failed_episodes": 3, "hit_wall": 2, "hit_box": 0, "hit_cylinder": 1, "hit_stub": 1}
-    assert summary_module.failures(recorded) == expected
+    assert summary_module.failures(recorded) == expected | {"hit_obstacle": 2, "hit_unseen": 1}
+    # Scored before the sightings were recorded: the hits are kept, the sightings empty.
+    hits_only = summary_module.failures(recorded.drop(columns=list(sightings)))
+    assert {key: hits_only[key] for key in expected} == expected
+    assert all(np.isnan(hits_only[column]) for column in summary_module.SIGHTINGS)
     older = summary_module.failures(recorded[["episodes", "successes"]])
     assert older["failed_episodes"] == 3
-    assert all(np.isnan(older[hit]) for hit in summary_module.HITS)
+    assert all(np.isnan(older[hit]) for hit in (*summary_module.HITS, *summary_module.SIGHTINGS))
+
+
+def grid_success(rates: dict[str, list[float]]) -> pd.DataFrame:
+    """A grid's ``success.csv``: ADC runs (seeds 0, 1, ...) with these success rates per test set (10 episodes each)."""
+    rows = []
+    for test_set, per_run in rates.items():
+        for seed, rate in enumerate(per_run):
+            rows.append(("adc", seed, test_set, 10, round(10 * rate), rate))
+    return pd.DataFrame(rows, columns=["algo", "seed", "test_set", "episodes", "successes", "success_rate"])
+
+
+def test_comparisons_set_the_runs_of_two_grids_against_each_other(summary_module, tmp_path):
+    changed = {"held-out layouts": [1.0, 0.9, 0.8], "unseen_posts": [1.0, 1.0, 0.0], "unseen_wide": [1.0, 1.0, 1.0]}
+    control = {"held-out layouts": [0.7, 0.6, 0.5], "unseen_posts": [0.0, 0.0, 0.0], "unseen_wide": [1.0, 1.0, 1.0]}
+    for name, rates in (("changed", changed), ("control", control)):
+        (tmp_path / name).mkdir()
+        grid_success(rates | {"training": [1.0, 1.0, 1.0]}).to_csv(tmp_path / name / "success.csv", index=False)
+    table = summary_module.compare(tmp_path, [("changed", "control"), ("changed", "absent")], reps=200)
+    # The pair with a grid not committed is left out; one row per test set of the pair that is.
+    assert list(table["test_set"]) == ["held-out layouts", summary_module.COURSE_FILES, "unseen_posts"]
+    rows = table.set_index("test_set")
+    # Every changed run beats every control run on the held-out layouts.
+    assert rows.loc["held-out layouts", "probability"] == 1.0
+    assert rows.loc["held-out layouts", "changed_mean"] == pytest.approx(0.9)
+    # On the posts two of three changed runs beat every control run and the third ties them: (2 + 0.5) / 3.
+    assert rows.loc["unseen_posts", "probability"] == pytest.approx(2.5 / 3)
+    assert rows.loc["unseen_posts", "ci_low"] <= rows.loc["unseen_posts", "probability"] <= rows.loc["unseen_posts", "ci_high"]
+    # The course files pooled per run without `training`: posts and wide, 20 episodes a run.
+    assert rows.loc[summary_module.COURSE_FILES, "changed_mean"] == pytest.approx((1.0 + 1.0 + 0.5) / 3)
+    assert rows.loc[summary_module.COURSE_FILES, "control_mean"] == pytest.approx(0.5)
+    assert "P(changed > control)" in summary_module.comparisons_markdown(table)
+    assert summary_module.comparisons_markdown(table.iloc[:0]) == ""
