@@ -53,7 +53,12 @@ def test_committed_summary_is_that_of_every_committed_grid(summary_module, rebui
     committed = pd.read_csv(results / "summary.csv")
     pd.testing.assert_frame_equal(committed, rebuilt, check_dtype=False, atol=1e-9)
     assert set(committed["grid"]) >= {folder.name for folder in summary_module.grids(results)}
-    assert (results / "summary.md").read_text() == summary_module.markdown(rebuilt, summary_module.held_out_obstacles())
+    comparisons = summary_module.compare(results, summary_module.COMPARISONS, reps=summary_module.COMPARISON_REPS)
+    # Every pair of grids it names is committed and compared.
+    assert len(comparisons) == 3 * len(summary_module.COMPARISONS)
+    pd.testing.assert_frame_equal(pd.read_csv(results / "comparisons.csv"), comparisons, check_dtype=False, atol=1e-9)
+    expected = summary_module.markdown(rebuilt, summary_module.held_out_obstacles())
+    assert (results / "summary.md").read_text() == expected + summary_module.comparisons_markdown(comparisons)
 
 
 def test_held_out_rows_are_the_grids_own_statistics_and_counts(summary_module, rebuilt):
