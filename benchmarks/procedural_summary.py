@@ -54,6 +54,7 @@ SIGHTINGS = ["hit_obstacle", "hit_unseen"]
 #: Pairs of grids to compare run against run: (changed, control), the same algorithm, seeds and test sets.
 COMPARISONS = [
     ("LidarObstacleCourse-v1_n_step_150k_sectors_validation", "LidarObstacleCourse-v1_n_step_150k_validation"),
+    ("LidarObstacleCourse-v1_n_step_150k_sectors_validation_best", "LidarObstacleCourse-v1_n_step_150k_validation_best"),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
