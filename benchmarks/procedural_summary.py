@@ -32,7 +32,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import pandas as pd
-from procedural_generalisation import ALGOS, DOCS_STATIC, HELD_OUT, RESULTS_DIR, VALIDATION_BEST, held_out_courses
+from procedural_generalisation import ALGOS, DOCS_STATIC, HELD_OUT, RESULTS_DIR, SIGHTING, VALIDATION_BEST, held_out_courses
 from procedural_generalisation import HITS as HIT_KINDS
 
 from sb3_adc.experiment.plots import algo_colors, display_name
@@ -280,8 +280,8 @@ def markdown(summary: pd.DataFrame, obstacles: dict[str, int]) -> str:
         "",
         "What the failed episodes ended against, summed over the runs (an episode against two kinds counts for both; "
         "grids scored before this was recorded are left out), and how many ended against an obstacle (not a wall of "
-        "the corridor) and against one the lidar did not show in time (no reading on it from 10 to 6 steps before "
-        "the contact; '-': not recorded when the grid was scored):",
+        "the corridor) and against one the lidar did not show in time (no reading on it from "
+        f"{SIGHTING[1]} to {SIGHTING[0]} steps before the contact; '-': not recorded when the grid was scored):",
         "",
         "| grid | algorithm | test set | failed episodes | wall | box | cylinder | wall stub | obstacle | obstacle unseen |",
         "|---|---|---|---:|---:|---:|---:|---:|---:|---:|",

@@ -108,7 +108,7 @@ class CourseSimulation:
         self.rays_per_reading = int(rays_per_reading)
         # The rays cast, reading after reading: each reading's rays at the middles of equal parts of its sector.
         offsets = (np.arange(self.rays_per_reading) + 0.5) / self.rays_per_reading * sector - sector / 2.0
-        cast_angles = (np.asarray(ray_angles)[:, None] + (offsets if self.rays_per_reading > 1 else 0.0)).ravel()
+        cast_angles = (np.asarray(ray_angles)[:, None] + offsets).ravel()  # one ray: offset 0, the reading's direction
         self._cast_vectors = max_range * np.column_stack([np.cos(cast_angles), np.sin(cast_angles)])
         n_rays = len(cast_angles)
         self._ray_from = np.full((n_rays, 3), SENSOR_HEIGHT)
