@@ -182,10 +182,11 @@ def episode_outcome(model: Any, env: gym.Env, **reset: Any) -> EpisodeOutcome:
             if info["is_success"]:
                 return EpisodeOutcome(True, [])
             x, y, _ = course_env.pose
-            obstacles = set(simulation.touched_bodies(x, y)) & set(simulation.obstacle_ids)
+            touched = simulation.touched_bodies(x, y)
+            obstacles = set(touched) & set(simulation.obstacle_ids)
             # scans[-1] is the scan at the contact, scans[-1 - k] the one k steps before it.
             seen = set().union(*list(scans)[: len(scans) - late])
-            return EpisodeOutcome(False, sorted(set(simulation.touching(x, y))), bool(obstacles - seen))
+            return EpisodeOutcome(False, sorted(set(simulation.body_kinds(touched))), bool(obstacles - seen))
 
 
 def episode_success(model: Any, env: gym.Env, **reset: Any) -> bool:

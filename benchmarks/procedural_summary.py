@@ -118,9 +118,10 @@ def summarise_grid(folder: Path) -> pd.DataFrame:
         files.assign(env=COURSE_FILES).rename(columns={"success_rate": "mean_return"}),
         reps=int(metadata["bootstrap_reps"]),
     ).rename(columns={"env": "test_set"})
+    per_run = run_rates(folder)
     rates = {
-        HELD_OUT: success[success["test_set"] == HELD_OUT].set_index(["algo", "seed"])["success_rate"],
-        COURSE_FILES: files.set_index(["algo", "seed"])["success_rate"],
+        test_set: per_run[per_run["env"] == test_set].set_index(["algo", "seed"])["mean_return"]
+        for test_set in (HELD_OUT, COURSE_FILES)
     }
     episodes = {HELD_OUT: success[success["test_set"] == HELD_OUT], COURSE_FILES: unseen_files(success)}
     # Grids written before --model existed scored the final models.

@@ -341,9 +341,18 @@ class CourseSimulation:
         :param x: The robot's position [m]
         :param y: The robot's position [m]
         """
+        return self.body_kinds(self.touched_bodies(x, y))
+
+    def body_kinds(self, bodies: list[int]) -> list[str]:
+        """
+        What each body is, in :meth:`touching`'s names: ``"wall"`` for a segment of the course's walls, else the
+        obstacle's shape (``"box"``, ``"cylinder"``, or ``"stub"`` for a wall stub).
+
+        :param bodies: Body ids of :attr:`wall_ids` and :attr:`obstacle_ids` (as :meth:`touched_bodies` gives them)
+        """
         first_obstacle = self.obstacle_ids[0] if self.obstacle_ids else None
         names = []
-        for body in self.touched_bodies(x, y):
+        for body in bodies:
             if first_obstacle is None or body < first_obstacle:
                 names.append("wall")
             else:

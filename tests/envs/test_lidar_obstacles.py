@@ -182,6 +182,8 @@ def test_touching_names_what_the_robot_hits(robot):
         assert sorted(simulation.touching(x, y)) == touched, (x, y)
         # The step's test agrees: a collision exactly where something is touched.
         assert collided == bool(touched)
+    # The names of bodies given by id: the obstacles in the course's order, any wall segment "wall".
+    assert simulation.body_kinds([*simulation.obstacle_ids, simulation.wall_ids[0]]) == ["cylinder", "box", "stub", "wall"]
     env.close()
 
 
