@@ -32,17 +32,17 @@ from stable_baselines3.common.type_aliases import GymEnv, TensorDict
 #: and ``gamma`` SB3 put into ``replay_buffer_kwargs`` when it built the model, so the loaded model does learn
 #: from n-step returns and the warning that ``n_steps`` "is ignored" is wrong there. A subclass of the buffer
 #: (another name) is still warned about.
-_LOADED_N_STEP_WARNING = r"`n_steps=\d+` is ignored because a custom `replay_buffer_class` \(`NStepReplayBuffer`\)"
+LOADED_N_STEP_WARNING = r"`n_steps=\d+` is ignored because a custom `replay_buffer_class` \(`NStepReplayBuffer`\)"
 
 
 @contextlib.contextmanager
 def loading_model() -> Iterator[None]:
     """
     Load a model file inside this: SB3's warning that a loaded n-step model's ``n_steps`` is ignored, which it is
-    not (:data:`_LOADED_N_STEP_WARNING`), stays silent; every other warning is shown.
+    not (:data:`LOADED_N_STEP_WARNING`), stays silent; every other warning is shown.
     """
     with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=_LOADED_N_STEP_WARNING, category=UserWarning)
+        warnings.filterwarnings("ignore", message=LOADED_N_STEP_WARNING, category=UserWarning)
         yield
 
 
