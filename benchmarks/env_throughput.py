@@ -1,7 +1,8 @@
 """Raw environment throughput: steps per second under random actions, on one CPU core.
 
 Measures every sb3-adc environment next to Gymnasium's ``Pendulum-v1`` in the same run, the lidar course with
-both its robots (the kinematic default and ``robot="wheeled"``, simulated with ``stepSimulation``), at two levels:
+both its robots (the kinematic default and ``robot="wheeled"``, simulated with ``stepSimulation``) and with four
+rays per lidar reading (``rays_per_reading=4``), at two levels:
 
 - ``core``: the object the registered entry point returns (the environment class itself, or for the noisy
   lidar course the noise wrapper around it), stepped directly;
@@ -42,6 +43,10 @@ FIGURE_PATH = Path(__file__).resolve().parent.parent / "docs" / "_static" / "env
 #: Wheeled robot: make kwargs, and the suffix of its measurements' names.
 WHEELED = {"robot": "wheeled"}
 WHEELED_SUFFIX = " (robot=wheeled)"
+#: The lidar with four rays per reading (each reading the nearest hit over its sector, docs/envs/lidar_course.rst),
+#: the sensor that shows the thin obstacles single rays miss: four times the rays of every scan.
+FOUR_RAYS = {"rays_per_reading": 4}
+FOUR_RAYS_SUFFIX = " (rays_per_reading=4)"
 #: Measurement name -> (environment id, make kwargs, number of steps per repeat in a full run).
 ENVIRONMENTS: dict[str, tuple[str, dict[str, Any], int]] = {
     "Pendulum-v1": ("Pendulum-v1", {}, 200_000),
@@ -51,6 +56,8 @@ ENVIRONMENTS: dict[str, tuple[str, dict[str, Any], int]] = {
     # steps, so resets weigh more here than in training).
     "sb3_adc/LidarObstacleCourse-v1": ("sb3_adc/LidarObstacleCourse-v1", {}, 50_000),
     "sb3_adc/LidarObstacleCourseNoisy-v1": ("sb3_adc/LidarObstacleCourseNoisy-v1", {}, 50_000),
+    "sb3_adc/LidarObstacleCourse-v0" + FOUR_RAYS_SUFFIX: ("sb3_adc/LidarObstacleCourse-v0", FOUR_RAYS, 200_000),
+    "sb3_adc/LidarObstacleCourse-v1" + FOUR_RAYS_SUFFIX: ("sb3_adc/LidarObstacleCourse-v1", FOUR_RAYS, 50_000),
     # The robot with dynamics: 10 physics steps per environment step.
     "sb3_adc/LidarObstacleCourse-v0" + WHEELED_SUFFIX: ("sb3_adc/LidarObstacleCourse-v0", WHEELED, 20_000),
     "sb3_adc/LidarObstacleCourse-v1" + WHEELED_SUFFIX: ("sb3_adc/LidarObstacleCourse-v1", WHEELED, 20_000),
@@ -175,7 +182,7 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
 
     env_ids = list(ENVIRONMENTS)
     width = 0.38
-    fig, ax = plt.subplots(figsize=(10, 4.2))
+    fig, ax = plt.subplots(figsize=(12, 4.2))
     for offset, level in zip((-width / 2, width / 2), LEVELS, strict=True):
         values = [next(r["steps_per_s"] for r in rows if r["environment"] == e and r["level"] == level) for e in env_ids]
         bars = ax.bar(np.arange(len(env_ids)) + offset, values, width, label=level)
@@ -185,7 +192,10 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
     ax.set_yscale("log")
     ax.set_ylabel("steps / s (one core)")
     labels = [
-        e.replace("sb3_adc/", "").replace("LidarObstacleCourse", "Lidar").replace(WHEELED_SUFFIX, "\nrobot=wheeled")
+        e.replace("sb3_adc/", "")
+        .replace("LidarObstacleCourse", "Lidar")
+        .replace(WHEELED_SUFFIX, "\nrobot=wheeled")
+        .replace(FOUR_RAYS_SUFFIX, "\n4 rays/reading")
         for e in env_ids
     ]
     ax.set_xticks(np.arange(len(env_ids)), labels, fontsize=8)
