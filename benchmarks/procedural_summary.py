@@ -118,7 +118,7 @@ def summarise_grid(folder: Path) -> pd.DataFrame:
         files.assign(env=COURSE_FILES).rename(columns={"success_rate": "mean_return"}),
         reps=int(metadata["bootstrap_reps"]),
     ).rename(columns={"env": "test_set"})
-    per_run = run_rates(folder)
+    per_run = success_rates_per_run(success)
     rates = {
         test_set: per_run[per_run["env"] == test_set].set_index(["algo", "seed"])["mean_return"]
         for test_set in (HELD_OUT, COURSE_FILES)
@@ -175,11 +175,17 @@ def planner_rows(results: Path) -> pd.DataFrame:
 
 
 def run_rates(folder: Path) -> pd.DataFrame:
+    """:func:`success_rates_per_run` of a grid's folder."""
+    return success_rates_per_run(pd.read_csv(folder / "success.csv"))
+
+
+def success_rates_per_run(success: pd.DataFrame) -> pd.DataFrame:
     """
     Per run of a grid (``algo``, ``seed``), its success rate (``mean_return``, the statistics' column) on each
     comparison test set (``env``): the held-out layouts, the unseen course files pooled, the posts course.
+
+    :param success: The grid's ``success.csv``
     """
-    success = pd.read_csv(folder / "success.csv")
     held_out = success[success["test_set"] == HELD_OUT][["algo", "seed", "success_rate"]].assign(env=HELD_OUT)
     files = course_file_rates(success)[["algo", "seed", "success_rate"]].assign(env=COURSE_FILES)
     posts = success[success["test_set"] == POSTS][["algo", "seed", "success_rate"]].assign(env=POSTS)

@@ -217,7 +217,7 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
         self.observation_space = spaces.Box(0.0, 1.0, shape=(self.n_rays,), dtype=np.float32)
         #: Ray directions relative to the heading [rad].
-        self.ray_angles = self._ray_angles(self.n_rays, self.fov)
+        self.ray_angles, sector = self._lidar_geometry(self.n_rays, self.fov)
         #: Rays cast for each reading.
         self.rays_per_reading = int(rays_per_reading)
         self._simulation = CourseSimulation(
@@ -227,7 +227,7 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
             self.max_range,
             robot,
             rays_per_reading=self.rays_per_reading,
-            sector=self._sector(self.n_rays, self.fov),
+            sector=sector,
         )
         self._renderer: TopDownRenderer | None = None
         self._progress = self._loop_progress(self.course)
@@ -241,19 +241,15 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         self._path_length = 0
 
     @staticmethod
-    def _sector(n_rays: int, fov: float) -> float:
-        # The angle between neighbouring readings (the whole field of view for one reading).
+    def _lidar_geometry(n_rays: int, fov: float) -> tuple[np.ndarray, float]:
+        # The readings' directions and the angle between neighbouring readings (the sector each reading's rays
+        # cover; the whole field of view for one reading).
         if math.isclose(fov, 2.0 * math.pi):
-            return 2.0 * math.pi / n_rays
-        return fov / (n_rays - 1) if n_rays > 1 else fov
-
-    @staticmethod
-    def _ray_angles(n_rays: int, fov: float) -> np.ndarray:
-        if math.isclose(fov, 2.0 * math.pi):
-            return np.arange(n_rays) * (2.0 * math.pi / n_rays)
+            sector = 2.0 * math.pi / n_rays
+            return np.arange(n_rays) * sector, sector
         if n_rays == 1:
-            return np.zeros(1)
-        return np.linspace(-fov / 2.0, fov / 2.0, n_rays)
+            return np.zeros(1), fov
+        return np.linspace(-fov / 2.0, fov / 2.0, n_rays), fov / (n_rays - 1)
 
     @staticmethod
     def _loop_progress(course: Course) -> LoopProgress | None:
