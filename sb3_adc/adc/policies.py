@@ -15,7 +15,7 @@ from stable_baselines3.common.torch_layers import (
     create_mlp,
 )
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
-from stable_baselines3.td3.policies import TD3Policy
+from stable_baselines3.td3.policies import Actor, TD3Policy
 from torch import nn
 from torch.nn import functional as F
 
@@ -189,6 +189,20 @@ INTERVAL_OUTPUT_DESIGNS = ("paper", "state_value")
 DEFAULT_CRITIC_DESIGN: CriticDesign = "legendre"
 #: Degree of the ``"legendre"`` advantage polynomial unless ``basis_degree`` says otherwise.
 DEFAULT_BASIS_DEGREE = 4
+
+
+def check_actor_average_tau(actor_average_tau: object) -> None:
+    """
+    Raise ``ValueError`` unless ``actor_average_tau`` is a number in ``[0, 1)``: the weight of each new actor in
+    :class:`ADCPolicy`'s averaged actor, 0 for no average.
+
+    :param actor_average_tau: The averaging coefficient
+    """
+    if isinstance(actor_average_tau, bool) or not isinstance(actor_average_tau, (int, float)) or not 0 <= actor_average_tau < 1:
+        raise ValueError(
+            "`actor_average_tau` must be a number >= 0 and < 1 (0: no averaged actor; 1e-4 averages over about "
+            f"10,000 actor updates), got {actor_average_tau!r}."
+        )
 
 
 def validate_critic_options(
@@ -433,10 +447,18 @@ class ADCPolicy(TD3Policy):
     :param critic_design: What computes the value and advantage streams: ``"paper"`` (the paper's form),
         ``"state_value"``, ``"legendre"`` or ``"action_network"`` (see :class:`DuelingIntervalCritic`)
     :param basis_degree: Degree of the advantage polynomial of ``critic_design="legendre"``
+    :param actor_average_tau: Not in the paper: with a value in ``(0, 1)``, the policy keeps ``actor_average``, a
+        Polyak average of the actor's iterates (after the ``n``-th actor update, ``average <- (1 - t) average +
+        t actor`` with ``t = max(actor_average_tau, 1 / n)``: their plain mean for the first
+        ``1 / actor_average_tau`` updates, an exponential moving average after). Deterministic predictions (the
+        deployed policy: evaluation, ``EvalCallback``) use the average; ``predict(deterministic=False)`` and the
+        exploration during training use the actor itself, so the average does not change what is learned.
+        0 (default): no average
     """
 
     critic: DuelingIntervalCritic  # type: ignore[assignment]
     critic_target: DuelingIntervalCritic  # type: ignore[assignment]
+    actor_average: Actor | None
 
     def __init__(
         self,
@@ -459,7 +481,10 @@ class ADCPolicy(TD3Policy):
         advantage_interpolation: Interpolation = "none",
         critic_design: CriticDesign = DEFAULT_CRITIC_DESIGN,
         basis_degree: int = DEFAULT_BASIS_DEGREE,
+        actor_average_tau: float = 0.0,
     ):
+        check_actor_average_tau(actor_average_tau)
+        self.actor_average_tau = float(actor_average_tau)
         # TD3Policy.__init__ builds the networks (through ``make_critic``), so the dueling options must be
         # in place before it runs.
         self.dueling_kwargs: dict[str, Any] = {
@@ -493,8 +518,24 @@ class ADCPolicy(TD3Policy):
 
     def _get_constructor_parameters(self) -> dict[str, Any]:
         data = super()._get_constructor_parameters()
-        data.update(self.dueling_kwargs)
+        data.update(self.dueling_kwargs, actor_average_tau=self.actor_average_tau)
         return data
+
+    def _build(self, lr_schedule: Schedule) -> None:
+        super()._build(lr_schedule)
+        self.actor_average = None
+        if self.actor_average_tau > 0:
+            # Initialised without drawing from torch's generator, so that a seeded run learns exactly what it
+            # would without the average.
+            with th.random.fork_rng(devices=[]):
+                self.actor_average = self.make_actor(features_extractor=None)
+            self.actor_average.load_state_dict(self.actor.state_dict())
+            self.actor_average.set_training_mode(False)
+
+    def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
+        if deterministic and self.actor_average is not None:
+            return self.actor_average(observation)
+        return self.actor(observation)
 
     def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None) -> DuelingIntervalCritic:  # type: ignore[override]
         critic_kwargs = self._update_features_extractor(self.critic_kwargs, features_extractor)

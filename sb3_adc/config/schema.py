@@ -14,7 +14,7 @@ import inspect
 from stable_baselines3.common.base_class import BaseAlgorithm
 
 from sb3_adc.adc.intervals import AGGREGATIONS, INTERPOLATIONS, check_n_intervals
-from sb3_adc.adc.policies import CRITIC_DESIGNS
+from sb3_adc.adc.policies import CRITIC_DESIGNS, check_actor_average_tau
 from sb3_adc.config import validators as v
 
 #: RL-Zoo keys read by the experiment tooling itself.
@@ -51,6 +51,7 @@ ADC_POLICY_KEYS: dict[str, v.Validator] = {
     "advantage_interpolation": v.choice(*INTERPOLATIONS),
     "critic_design": v.choice(*CRITIC_DESIGNS),
     "basis_degree": v.integer(1),
+    "actor_average_tau": v.checked_by(check_actor_average_tau, v.real()),
 }
 
 #: Types of the constructor keywords of the supported algorithms (others accept any YAML scalar).
