@@ -9,7 +9,9 @@ constant learning rates, an exploration schedule in steps), so one run gives the
 Every checkpoint is scored, deterministically, on the validation layouts (``VALIDATION_LAYOUT_SEEDS``,
 2,000,000-2,000,099, ``--layouts`` of them): a split that neither training (0-999,999) nor the held-out test set
 (1,000,000-1,000,099) uses, so the choices made from this sweep leave the test layouts and course files unseen.
-The runs use tuning seeds (default 0-2), never the reporting seeds 1000-1009.
+The runs use tuning seeds (default 0-2), never the reporting seeds 1000-1009. A configuration whose model deploys
+an averaged actor (ADC's ``actor_average_tau``) is also scored with the actor itself, as
+``"{name} (actor itself)"``: both policies of the same runs.
 
 Training is ``sb3-adc benchmark``'s engine (resumable, one process per run); the runs go to
 ``benchmarks/runs/budget_sweep/`` (not committed), the table to ``benchmarks/results/budget_sweep/{name}/``
@@ -76,24 +78,38 @@ def config_name(gamma: float | None) -> str:
     return SHIPPED if gamma is None else f"gamma {gamma:g}"
 
 
-def score_checkpoint(run_dir: str, config: str, seed: int, timesteps: int, model_path: str, n_layouts: int) -> dict[str, Any]:
-    """The success rate of one checkpoint on the first ``n_layouts`` validation layouts, one episode each."""
+def score_checkpoint(
+    run_dir: str, config: str, seed: int, timesteps: int, model_path: str, n_layouts: int
+) -> list[dict[str, Any]]:
+    """
+    The success rate of one checkpoint on the first ``n_layouts`` validation layouts, one episode each. A model that
+    deploys an averaged actor (ADC's ``actor_average_tau``) is scored twice: as deployed, and with the actor itself
+    as configuration ``"{config} (actor itself)"``, the same run's two policies.
+    """
     th.set_num_threads(1)
     settings, entry, model, kwargs = load_for_scoring(run_dir, path=model_path)
     env = entry.wrap_env(gym.make(settings.env_id, **{**kwargs, "layout_seeds": VALIDATION_LAYOUT_SEEDS}))
     first = VALIDATION_LAYOUT_SEEDS[0]
-    successes = [layout_success(model, env, first + k) for k in range(n_layouts)]
+
+    def row(name: str) -> dict[str, Any]:
+        successes = [layout_success(model, env, first + k) for k in range(n_layouts)]
+        return {
+            "config": name,
+            "algo": settings.algo,
+            "env": settings.env_id,
+            "seed": seed,
+            "timesteps": timesteps,
+            "episodes": n_layouts,
+            "successes": int(sum(successes)),
+            "success_rate": float(np.mean(successes)),
+        }
+
+    rows = [row(config)]
+    if getattr(model.policy, "actor_average", None) is not None:
+        model.policy.actor_average = None  # deterministic predictions then use the actor itself
+        rows.append(row(f"{config} (actor itself)"))
     env.close()
-    return {
-        "config": config,
-        "algo": settings.algo,
-        "env": settings.env_id,
-        "seed": seed,
-        "timesteps": timesteps,
-        "episodes": n_layouts,
-        "successes": int(sum(successes)),
-        "success_rate": float(np.mean(successes)),
-    }
+    return rows
 
 
 def summarise(sweep: pd.DataFrame, reps: int) -> pd.DataFrame:
@@ -198,7 +214,7 @@ def main() -> None:
     training = training_record(output, statuses, time.perf_counter() - start, args.workers)
     start = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        sweep = pd.DataFrame(list(pool.map(score_checkpoint, *zip(*jobs, strict=True))))
+        sweep = pd.DataFrame([row for rows in pool.map(score_checkpoint, *zip(*jobs, strict=True)) for row in rows])
     scoring_s = round(time.perf_counter() - start, 1)
     sweep.to_csv(output / "sweep.csv", index=False)
     curves = summarise(sweep, reps)

@@ -198,7 +198,8 @@ def check_actor_average_tau(actor_average_tau: object) -> None:
 
     :param actor_average_tau: The averaging coefficient
     """
-    if isinstance(actor_average_tau, bool) or not isinstance(actor_average_tau, (int, float)) or not 0 <= actor_average_tau < 1:
+    tau = actor_average_tau
+    if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not 0 <= tau < 1:
         raise ValueError(
             "`actor_average_tau` must be a number >= 0 and < 1 (0: no averaged actor; 1e-4 averages over about "
             f"10,000 actor updates), got {actor_average_tau!r}."

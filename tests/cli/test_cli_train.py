@@ -97,6 +97,7 @@ def test_vanilla_actor_critic_and_overrides(cli, train_args, tmp_path):
         (["--env", "Pendulum-v9"], "unknown environment id 'Pendulum-v9'; closest registered ids: Pendulum-v1"),
         (["-params", "learnig_rate:0.1"], "`learnig_rate`: unknown key for adc (ADC); accepted keys:"),
         (["-params", "gamma:high"], "`gamma`: expected a number >= 0.0, <= 1.0, got 'high'"),
+        (["-params", "actor_average_tau:1"], "`actor_average_tau` must be a number >= 0 and < 1"),
         (["-params", "policy_kwargs:dict(a=__import__('os'))"], "function calls are not allowed"),
         (["--env-kwargs", "g"], "overrides must be written key:value"),
         (["-conf", "/nonexistent.yml"], "/nonexistent.yml: hyperparameter file not found"),

@@ -118,6 +118,8 @@ def test_epsilon_noise_defaults_are_documented_and_saved():
         ({"gradient_steps": 0}, "gradient_steps", "an integer >= 1 or -1"),
         ({"n_intervals": 1}, "n_intervals", "an integer >= 2"),
         ({"aggregation": "sum"}, "aggregation", "'mean', 'max'"),
+        ({"actor_average_tau": 1}, "actor_average_tau", "must be a number >= 0 and < 1"),
+        ({"actor_average_tau": "small"}, "actor_average_tau", "expected a number, got 'small'"),
         ({"policy_kwargs": [64, 64]}, "policy_kwargs", "a mapping"),
         ({"policy_kwargs": "[64, 64]"}, "policy_kwargs", "must be a mapping"),
         ({"policy_kwargs": "dict(activation_fn=nn.Softmax2d)"}, "policy_kwargs", "name 'nn.Softmax2d' is not allowed"),

@@ -98,12 +98,36 @@ def test_score_run_reports_each_test_set_of_the_run(scripts, run_dir):
 def test_budget_sweep_scores_a_checkpoint_and_names_configs_files(scripts, run_dir, tmp_path):
     procedural, budget_sweep = scripts
     point = RunLayout(run_dir, ENV_ID).checkpoints()[0]
-    row = budget_sweep.score_checkpoint(run_dir, "tiny", 3, point.timesteps, point.model, 2)
+    (row,) = budget_sweep.score_checkpoint(run_dir, "tiny", 3, point.timesteps, point.model, 2)
     assert (row["config"], row["algo"], row["timesteps"], row["episodes"]) == ("tiny", "td3", point.timesteps, 2)
     inside = ROOT / "benchmarks" / "configs" / "budget_sweep" / "shaping.yml"
     assert procedural.repository_path(str(inside)) == "benchmarks/configs/budget_sweep/shaping.yml"
     outside = tmp_path / "configs.yml"
     assert procedural.repository_path(str(outside)) == str(outside.resolve())
+
+
+def test_budget_sweep_scores_an_averaged_actor_as_deployed_and_as_the_actor_itself(scripts, tmp_path, monkeypatch):
+    _, budget_sweep = scripts
+    conf = tmp_path / "adc.yml"
+    entry = TINY_TD3.replace("net_arch=[8])", "net_arch=[8], n_intervals=4, actor_average_tau=0.5)")
+    conf.write_text(textwrap.dedent(entry))
+    args = ["train", "--algo", "adc", "--env", ENV_ID, "-conf", str(conf), "-f", str(tmp_path / "logs"), "--seed", "3"]
+    extra = ["--eval-freq", "-1", "--final-eval-episodes", "1", "--save-freq", "300", "--no-progress-bar"]
+    assert main([*args, *extra]) == 0
+    (run,) = (tmp_path / "logs" / "adc").iterdir()
+    point = RunLayout(str(run), ENV_ID).checkpoints()[-1]
+    averaged: list[bool] = []
+
+    def layout_success(model, env, layout_seed):
+        averaged.append(model.policy.actor_average is not None)
+        return layout_seed % 2 == 0
+
+    monkeypatch.setattr(budget_sweep, "layout_success", layout_success)
+    rows = budget_sweep.score_checkpoint(str(run), "tiny", 3, point.timesteps, point.model, 2)
+    assert [row["config"] for row in rows] == ["tiny", "tiny (actor itself)"]
+    assert [row["successes"] for row in rows] == [1, 1]
+    # The deployed policy's two layouts with the average, then the same two with the actor itself.
+    assert averaged == [True, True, False, False]
 
 
 # A 14 m x 8 m rectangular loop 2 m wide; the robot starts at (3, 0) heading +x along the bottom straight.
