@@ -24,6 +24,10 @@ evaluation with the best mean return (SB3's ``EvalCallback`` rule, the RL Zoo's 
 5 episodes on training layouts, none of the test sets), the same rule for every algorithm. The runs are the same
 (trained once, found finished); its results go to folders named ``..._best``.
 
+``--actor-itself`` scores ADC runs that deploy an averaged actor (``actor_average_tau``) with the actor itself, the
+average dropped: the same runs' control, since the average changes nothing that is learned; its results go to
+folders named ``..._actor_itself``.
+
 ``--validation`` trains runs of their own (folders ``..._validation``) whose periodic evaluations select the model
 on a validation split: 10 per run, each on the same 100 episodes of the validation layouts
 (``VALIDATION_LAYOUT_SEEDS``, 2,000,000-2,000,099, which the tuning also used and the test sets do not), keeping as
@@ -367,13 +371,18 @@ def score_run(
     n_layouts: int,
     trajectory_layouts: int,
     which: str = "final",
+    actor_itself: bool = False,
 ) -> tuple[list[dict[str, Any]], list[pd.DataFrame]]:
     """
     :func:`score_policy` for a finished run's model (``which``: ``final`` or ``best``, see ``--model``), its rows and
-    paths labelled with the run.
+    paths labelled with the run; with ``actor_itself`` (``--actor-itself``), the model's averaged actor dropped.
     """
     th.set_num_threads(1)
     _, config, model, kwargs = load_for_scoring(run_dir, which)
+    if actor_itself:
+        if getattr(model.policy, "actor_average", None) is None:
+            raise SystemExit(f"--actor-itself: the model of {run_dir} does not deploy an averaged actor")
+        model.policy.actor_average = None  # deterministic predictions then use the actor itself
     rows, paths = score_policy(model, config.wrap_env, env_id, kwargs, courses, course_episodes, n_layouts, trajectory_layouts)
     run = {"algo": algo, "env": env_id, "seed": seed}
     return [run | row for row in rows], [path.assign(algo=algo, seed=seed)[["algo", "seed", *path.columns]] for path in paths]
@@ -464,6 +473,9 @@ def main() -> None:
         action="store_true",
         help="runs of their own that select best_model.zip by success on the validation layouts (see above)",
     )
+    parser.add_argument(
+        "--actor-itself", action="store_true", help="score ADC's actor itself instead of its averaged actor (see above)"
+    )
     args = parser.parse_args()
     if min(args.workers, args.course_episodes, args.reps, args.trajectory_layouts) < 1:
         parser.error("--workers, --course-episodes, --reps and --trajectory-layouts must be >= 1")
@@ -489,7 +501,8 @@ def main() -> None:
     grid = args.env.split("/")[-1] + robot + stem
     quick = "_quick" if args.quick else ""
     runs_name = grid + ("_validation" if args.validation else "") + quick
-    name = runs_name.removesuffix(quick) + ("" if args.model == "final" else f"_{args.model}") + quick
+    name = runs_name.removesuffix(quick) + ("" if args.model == "final" else f"_{args.model}")
+    name += ("_actor_itself" if args.actor_itself else "") + quick
     seeds, n_layouts, reps = SEEDS, len(range(*TEST_LAYOUT_SEEDS)), args.reps
     courses = sorted(path.stem for path in COURSES_DIR.glob("*.yml"))
     trajectory_layouts = args.trajectory_layouts
@@ -550,6 +563,7 @@ def main() -> None:
             n_layouts,
             trajectory_layouts,
             args.model,
+            args.actor_itself,
         )
         for algo in args.algos
         for seed in seeds
@@ -596,6 +610,7 @@ def main() -> None:
         **({"configs": configs} if args.configs else {}),
         "model": VALIDATION_BEST if args.validation and args.model == "best" else MODELS[args.model],
         **({"validation": periodic_evaluations(True, 0)} if args.validation else {}),
+        **({"actor_itself": True} if args.actor_itself else {}),
         "held_out_layouts": [TEST_LAYOUT_SEEDS[0], TEST_LAYOUT_SEEDS[0] + n_layouts - 1],
         "trajectory_layouts": trajectory_layouts,
         "courses": courses,

@@ -130,6 +130,8 @@ def summarise_grid(folder: Path) -> pd.DataFrame:
         model = "best on validation"
     else:
         model = "best" if described.startswith("each run's best") else "final"
+    if metadata.get("actor_itself"):  # scored with --actor-itself: the averaged actor dropped
+        model += ", actor itself"
     rows = []
     for table in (held_out, performance):
         for row in table.to_dict("records"):

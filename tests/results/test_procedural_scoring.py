@@ -106,16 +106,22 @@ def test_budget_sweep_scores_a_checkpoint_and_names_configs_files(scripts, run_d
     assert procedural.repository_path(str(outside)) == str(outside.resolve())
 
 
-def test_budget_sweep_scores_an_averaged_actor_as_deployed_and_as_the_actor_itself(scripts, tmp_path, monkeypatch):
-    _, budget_sweep = scripts
-    conf = tmp_path / "adc.yml"
-    entry = TINY_TD3.replace("net_arch=[8])", "net_arch=[8], n_intervals=4, actor_average_tau=0.5)")
-    conf.write_text(textwrap.dedent(entry))
-    args = ["train", "--algo", "adc", "--env", ENV_ID, "-conf", str(conf), "-f", str(tmp_path / "logs"), "--seed", "3"]
+@pytest.fixture(scope="module")
+def averaged_run_dir(tmp_path_factory) -> str:
+    """A tiny ADC run whose model deploys an averaged actor."""
+    folder = tmp_path_factory.mktemp("averaged")
+    conf = folder / "adc.yml"
+    conf.write_text(textwrap.dedent(TINY_TD3.replace("net_arch=[8])", "net_arch=[8], n_intervals=4, actor_average_tau=0.5)")))
+    args = ["train", "--algo", "adc", "--env", ENV_ID, "-conf", str(conf), "-f", str(folder / "logs"), "--seed", "3"]
     extra = ["--eval-freq", "-1", "--final-eval-episodes", "1", "--save-freq", "300", "--no-progress-bar"]
     assert main([*args, *extra]) == 0
-    (run,) = (tmp_path / "logs" / "adc").iterdir()
-    point = RunLayout(str(run), ENV_ID).checkpoints()[-1]
+    (run,) = (folder / "logs" / "adc").iterdir()
+    return str(run)
+
+
+def test_budget_sweep_scores_an_averaged_actor_as_deployed_and_as_the_actor_itself(scripts, averaged_run_dir, monkeypatch):
+    _, budget_sweep = scripts
+    point = RunLayout(averaged_run_dir, ENV_ID).checkpoints()[-1]
     averaged: list[bool] = []
 
     def layout_success(model, env, layout_seed):
@@ -123,11 +129,32 @@ def test_budget_sweep_scores_an_averaged_actor_as_deployed_and_as_the_actor_itse
         return layout_seed % 2 == 0
 
     monkeypatch.setattr(budget_sweep, "layout_success", layout_success)
-    rows = budget_sweep.score_checkpoint(str(run), "tiny", 3, point.timesteps, point.model, 2)
+    rows = budget_sweep.score_checkpoint(averaged_run_dir, "tiny", 3, point.timesteps, point.model, 2)
     assert [row["config"] for row in rows] == ["tiny", "tiny (actor itself)"]
     assert [row["successes"] for row in rows] == [1, 1]
     # The deployed policy's two layouts with the average, then the same two with the actor itself.
     assert averaged == [True, True, False, False]
+
+
+@pytest.mark.parametrize("actor_itself", [False, True])
+def test_score_run_scores_the_actor_itself_when_asked(scripts, averaged_run_dir, monkeypatch, actor_itself):
+    procedural, _ = scripts
+    averaged: list[bool] = []
+
+    def score_policy(model, *args):
+        averaged.append(model.policy.actor_average is not None)
+        return [{"test_set": "held-out layouts", "success_rate": 1.0}], []
+
+    monkeypatch.setattr(procedural, "score_policy", score_policy)
+    rows, _ = procedural.score_run(averaged_run_dir, "adc", ENV_ID, 3, [], 1, 2, 0, actor_itself=actor_itself)
+    assert averaged == [not actor_itself]
+    assert rows == [{"algo": "adc", "env": ENV_ID, "seed": 3, "test_set": "held-out layouts", "success_rate": 1.0}]
+
+
+def test_score_run_refuses_the_actor_itself_of_a_model_without_an_average(scripts, run_dir):
+    procedural, _ = scripts
+    with pytest.raises(SystemExit, match="does not deploy an averaged actor"):
+        procedural.score_run(run_dir, "td3", ENV_ID, 3, [], 1, 2, 0, actor_itself=True)
 
 
 # A 14 m x 8 m rectangular loop 2 m wide; the robot starts at (3, 0) heading +x along the bottom straight.
