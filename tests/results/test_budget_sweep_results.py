@@ -38,7 +38,11 @@ def test_committed_sweep_follows_the_protocol_and_rebuilds(folder, monkeypatch):
     # One row per configuration, seed and checkpoint; the checkpoints every tenth of the budget.
     every = metadata["checkpoint_every"]
     steps = list(range(every, metadata["n_timesteps"] + 1, every))
-    assert set(sweep["config"]) == set(metadata["configs"])
+    # Each configuration, and the actor itself of those that deploy an averaged actor (the same runs).
+    itself = " (actor itself)"
+    assert {config.removesuffix(itself) for config in sweep["config"]} == set(metadata["configs"])
+    for config in {config.removesuffix(itself) for config in sweep["config"] if config.endswith(itself)}:
+        assert "actor_average_tau" in str(metadata["configs"][config].get("policy_kwargs")), config
     for (config, seed), rows in sweep.groupby(["config", "seed"]):
         assert sorted(rows["timesteps"]) == steps, (config, seed)
     # The curves and the summary rebuild from the rows.
