@@ -84,3 +84,15 @@ def test_configs_file_is_checked_and_committed_sweeps_name_theirs(tmp_path, monk
             assert metadata["configs"] == budget_sweep.read_configs(str(configs))
     sys.modules.pop("budget_sweep", None)
     sys.modules.pop("procedural_generalisation", None)
+
+
+def test_the_averaged_actor_sweep_holds_the_same_runs_as_its_control():
+    """The averaged actor changes nothing that is learned: the actor itself of each run of the averaged-actor sweep
+    scores, checkpoint by checkpoint, what the same seed's "4 rays" run of the earlier sweep scored."""
+    sweep = pd.read_csv(RESULTS / "LidarObstacleCourse-v1_adc_actor_average_150k" / "sweep.csv")
+    control = pd.read_csv(RESULTS / "LidarObstacleCourse-v1_adc_sectors_batch_150k" / "sweep.csv")
+    columns = ["seed", "timesteps", "episodes", "successes"]
+    itself = sweep[sweep["config"] == "4 rays averaged actor (actor itself)"][columns].sort_values(columns[:2])
+    same = control[control["config"] == "4 rays"][columns].sort_values(columns[:2])
+    assert len(itself) == 50
+    pd.testing.assert_frame_equal(itself.reset_index(drop=True), same.reset_index(drop=True))
