@@ -46,6 +46,7 @@ import numpy as np
 import pandas as pd
 import torch as th
 from procedural_generalisation import (
+    drop_actor_average,
     layout_success,
     load_for_scoring,
     read_configs,
@@ -105,8 +106,7 @@ def score_checkpoint(
         }
 
     rows = [row(config)]
-    if getattr(model.policy, "actor_average", None) is not None:
-        model.policy.actor_average = None  # deterministic predictions then use the actor itself
+    if drop_actor_average(model):
         rows.append(row(f"{config} (actor itself)"))
     env.close()
     return rows

@@ -68,6 +68,7 @@ import gymnasium as gym
 import numpy as np
 import pandas as pd
 import torch as th
+from stable_baselines3.common.base_class import BaseAlgorithm
 
 from sb3_adc.config.experiment_config import ExperimentConfig
 from sb3_adc.config.loader import HyperparamsError, load_hyperparams, read_yaml_file
@@ -361,6 +362,17 @@ def score_policy(
     return rows, paths
 
 
+def drop_actor_average(model: BaseAlgorithm) -> bool:
+    """
+    Make a model that deploys an averaged actor (ADC's ``actor_average_tau``) predict with the actor itself, its
+    average dropped (the model is then for scoring only). Returns whether it had one.
+    """
+    if getattr(model.policy, "actor_average", None) is None:
+        return False
+    model.policy.actor_average = None  # deterministic predictions then use the actor itself
+    return True
+
+
 def score_run(
     run_dir: str,
     algo: str,
@@ -379,10 +391,8 @@ def score_run(
     """
     th.set_num_threads(1)
     _, config, model, kwargs = load_for_scoring(run_dir, which)
-    if actor_itself:
-        if getattr(model.policy, "actor_average", None) is None:
-            raise SystemExit(f"--actor-itself: the model of {run_dir} does not deploy an averaged actor")
-        model.policy.actor_average = None  # deterministic predictions then use the actor itself
+    if actor_itself and not drop_actor_average(model):
+        raise SystemExit(f"--actor-itself: the model of {run_dir} does not deploy an averaged actor")
     rows, paths = score_policy(model, config.wrap_env, env_id, kwargs, courses, course_episodes, n_layouts, trajectory_layouts)
     run = {"algo": algo, "env": env_id, "seed": seed}
     return [run | row for row in rows], [path.assign(algo=algo, seed=seed)[["algo", "seed", *path.columns]] for path in paths]
