@@ -70,6 +70,7 @@ import pandas as pd
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 
+from sb3_adc.adc.policies import ADCPolicy
 from sb3_adc.config.experiment_config import ExperimentConfig
 from sb3_adc.config.loader import HyperparamsError, load_hyperparams, read_yaml_file
 from sb3_adc.experiment.benchmark import EVALUATIONS_CSV, FINAL_CSV, BenchmarkSettings, RunOutcome, RunSpec, run_benchmark
@@ -367,9 +368,10 @@ def drop_actor_average(model: BaseAlgorithm) -> bool:
     Make a model that deploys an averaged actor (ADC's ``actor_average_tau``) predict with the actor itself, its
     average dropped (the model is then for scoring only). Returns whether it had one.
     """
-    if getattr(model.policy, "actor_average", None) is None:
+    policy = model.policy
+    if not isinstance(policy, ADCPolicy) or policy.actor_average is None:
         return False
-    model.policy.actor_average = None  # deterministic predictions then use the actor itself
+    policy.actor_average = None  # deterministic predictions then use the actor itself
     return True
 
 
