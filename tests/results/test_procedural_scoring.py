@@ -50,16 +50,20 @@ def scripts():
         sys.modules.pop("procedural_generalisation", None)
 
 
+def train_tiny_run(folder: Path, algo: str, entry: str, *extra: str) -> str:
+    """Train one seed-3 run of ``algo`` with the hyperparameter ``entry`` through the CLI; its run folder."""
+    conf = folder / f"{algo}.yml"
+    conf.write_text(textwrap.dedent(entry))
+    args = ["train", "--algo", algo, "--env", ENV_ID, "-conf", str(conf), "-f", str(folder / "logs"), "--seed", "3"]
+    assert main([*args, *extra, "--final-eval-episodes", "1", "--no-progress-bar"]) == 0
+    (run,) = (folder / "logs" / algo).iterdir()
+    return str(run)
+
+
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory) -> str:
-    folder = tmp_path_factory.mktemp("scoring")
-    conf = folder / "td3.yml"
-    conf.write_text(textwrap.dedent(TINY_TD3))
-    args = ["train", "--algo", "td3", "--env", ENV_ID, "-conf", str(conf), "-f", str(folder / "logs"), "--seed", "3"]
-    extra = ["--eval-freq", "100", "--eval-episodes", "1", "--final-eval-episodes", "1", "--save-freq", "100"]
-    assert main([*args, *extra, "--no-progress-bar"]) == 0
-    (run,) = (folder / "logs" / "td3").iterdir()
-    return str(run)
+    extra = ["--eval-freq", "100", "--eval-episodes", "1", "--save-freq", "100"]
+    return train_tiny_run(tmp_path_factory.mktemp("scoring"), "td3", TINY_TD3, *extra)
 
 
 def same_parameters(model, path: str) -> bool:
@@ -109,14 +113,8 @@ def test_budget_sweep_scores_a_checkpoint_and_names_configs_files(scripts, run_d
 @pytest.fixture(scope="module")
 def averaged_run_dir(tmp_path_factory) -> str:
     """A tiny ADC run whose model deploys an averaged actor."""
-    folder = tmp_path_factory.mktemp("averaged")
-    conf = folder / "adc.yml"
-    conf.write_text(textwrap.dedent(TINY_TD3.replace("net_arch=[8])", "net_arch=[8], n_intervals=4, actor_average_tau=0.5)")))
-    args = ["train", "--algo", "adc", "--env", ENV_ID, "-conf", str(conf), "-f", str(folder / "logs"), "--seed", "3"]
-    extra = ["--eval-freq", "-1", "--final-eval-episodes", "1", "--save-freq", "300", "--no-progress-bar"]
-    assert main([*args, *extra]) == 0
-    (run,) = (folder / "logs" / "adc").iterdir()
-    return str(run)
+    entry = TINY_TD3.replace("net_arch=[8])", "net_arch=[8], n_intervals=4, actor_average_tau=0.5)")
+    return train_tiny_run(tmp_path_factory.mktemp("averaged"), "adc", entry, "--eval-freq", "-1", "--save-freq", "300")
 
 
 def test_budget_sweep_scores_an_averaged_actor_as_deployed_and_as_the_actor_itself(scripts, averaged_run_dir, monkeypatch):
