@@ -24,8 +24,8 @@ evaluation with the best mean return (SB3's ``EvalCallback`` rule, the RL Zoo's 
 5 episodes on training layouts, none of the test sets), the same rule for every algorithm. The runs are the same
 (trained once, found finished); its results go to folders named ``..._best``.
 
-``--actor-itself`` scores ADC runs that deploy an averaged actor (``actor_average_tau``) with the actor itself, the
-average dropped: the same runs' control, since the average changes nothing that is learned; its results go to
+``--actor-itself`` scores runs (ADC or TD3) that deploy an averaged actor (``actor_average_tau``) with the actor
+itself, the average dropped: the same runs' control, since the average changes nothing that is learned; its results go to
 folders named ``..._actor_itself``.
 
 ``--validation`` trains runs of their own (folders ``..._validation``) whose periodic evaluations select the model
@@ -70,7 +70,7 @@ import pandas as pd
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 
-from sb3_adc.adc.policies import ADCPolicy
+from sb3_adc.common.actor_average import ActorAverageTD3Policy
 from sb3_adc.config.experiment_config import ExperimentConfig
 from sb3_adc.config.loader import HyperparamsError, load_hyperparams, read_yaml_file
 from sb3_adc.experiment.benchmark import EVALUATIONS_CSV, FINAL_CSV, BenchmarkSettings, RunOutcome, RunSpec, run_benchmark
@@ -365,14 +365,11 @@ def score_policy(
 
 def drop_actor_average(model: BaseAlgorithm) -> bool:
     """
-    Make a model that deploys an averaged actor (ADC's ``actor_average_tau``) predict with the actor itself, its
-    average dropped (the model is then for scoring only). Returns whether it had one.
+    Make a model that deploys an averaged actor (``actor_average_tau`` of ADC's or TD3's policy) predict with the
+    actor itself (the model is then for scoring only). Returns whether it had one.
     """
     policy = model.policy
-    if not isinstance(policy, ADCPolicy) or policy.actor_average is None:
-        return False
-    policy.actor_average = None  # deterministic predictions then use the actor itself
-    return True
+    return isinstance(policy, ActorAverageTD3Policy) and policy.drop_actor_average()
 
 
 def score_run(

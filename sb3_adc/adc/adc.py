@@ -185,8 +185,6 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
             (list(self.critic.parameters()), list(self.critic_target.parameters())),
             (self._actor_parameters, list(self.actor_target.parameters())),
         ]
-        average = self.policy.actor_average
-        self._actor_average_parameters: list[th.nn.Parameter] | None = None if average is None else list(average.parameters())
 
     def _default_critic_lr_schedule(self) -> Schedule:
         """The paper's critic rate, twice the actor's at every point of training (``critic_learning_rate=None``)."""
@@ -242,12 +240,8 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
                 # Copy running stats, see SB3 GH issue #996
                 polyak_update(self.critic_batch_norm_stats, self.critic_batch_norm_stats_target, 1.0)
                 polyak_update(self.actor_batch_norm_stats, self.actor_batch_norm_stats_target, 1.0)
-                if self._actor_average_parameters is not None:
-                    # The deployed policy's average of the actor's iterates (ADCPolicy's ``actor_average_tau``);
-                    # ``_n_updates`` is saved with the model, so a resumed run goes on with the same weights.
-                    n_actor_updates = self._n_updates // self.policy_delay
-                    weight = max(self.policy.actor_average_tau, 1.0 / n_actor_updates)
-                    polyak_update(self._actor_parameters, self._actor_average_parameters, weight)
+                # The deployed policy's average of the actor's iterates (``actor_average_tau``; none by default).
+                self.policy.update_actor_average(self._n_updates // self.policy_delay)
 
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         if len(actor_losses) > 0:
@@ -293,7 +287,6 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
             "_last_batch",
             "_actor_parameters",
             "_target_updates",
-            "_actor_average_parameters",
         ]
 
     def _check_saved_parameters(self, params: dict[str, Any]) -> None:

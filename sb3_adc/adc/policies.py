@@ -15,12 +15,12 @@ from stable_baselines3.common.torch_layers import (
     create_mlp,
 )
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
-from stable_baselines3.td3.policies import Actor, TD3Policy
 from torch import nn
 from torch.nn import functional as F
 
 from sb3_adc.adc.designs import ActionAdvantageNetwork, LegendreAdvantageNetwork, StateValueIntervalNetwork
 from sb3_adc.adc.intervals import Aggregation, Interpolation, UniformIntervalPartition, aggregate, validate_interval_options
+from sb3_adc.common.actor_average import ActorAverageTD3Policy
 from sb3_adc.common.spaces import check_action_space
 
 #: Multiply-accumulates (batch x trunk width x advantage outputs) from which a single-layer advantage stream reads
@@ -189,21 +189,6 @@ INTERVAL_OUTPUT_DESIGNS = ("paper", "state_value")
 DEFAULT_CRITIC_DESIGN: CriticDesign = "legendre"
 #: Degree of the ``"legendre"`` advantage polynomial unless ``basis_degree`` says otherwise.
 DEFAULT_BASIS_DEGREE = 4
-
-
-def check_actor_average_tau(actor_average_tau: object) -> None:
-    """
-    Raise ``ValueError`` unless ``actor_average_tau`` is a number in ``[0, 1)``: the weight of each new actor in
-    :class:`ADCPolicy`'s averaged actor, 0 for no average.
-
-    :param actor_average_tau: The averaging coefficient
-    """
-    tau = actor_average_tau
-    if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not 0 <= tau < 1:
-        raise ValueError(
-            "`actor_average_tau` must be a number >= 0 and < 1 (0: no averaged actor; 1e-4 averages over about "
-            f"10,000 actor updates), got {actor_average_tau!r}."
-        )
 
 
 def validate_critic_options(
@@ -416,7 +401,7 @@ def _make_network(
     )
 
 
-class ADCPolicy(TD3Policy):
+class ADCPolicy(ActorAverageTD3Policy):
     """
     Policy class (an actor and a dueling interval critic, with their target networks) for ADC.
 
@@ -459,7 +444,6 @@ class ADCPolicy(TD3Policy):
 
     critic: DuelingIntervalCritic  # type: ignore[assignment]
     critic_target: DuelingIntervalCritic  # type: ignore[assignment]
-    actor_average: Actor | None
 
     def __init__(
         self,
@@ -484,8 +468,6 @@ class ADCPolicy(TD3Policy):
         basis_degree: int = DEFAULT_BASIS_DEGREE,
         actor_average_tau: float = 0.0,
     ):
-        check_actor_average_tau(actor_average_tau)
-        self.actor_average_tau = float(actor_average_tau)
         # TD3Policy.__init__ builds the networks (through ``make_critic``), so the dueling options must be
         # in place before it runs.
         self.dueling_kwargs: dict[str, Any] = {
@@ -510,6 +492,7 @@ class ADCPolicy(TD3Policy):
             optimizer_kwargs=optimizer_kwargs,
             n_critics=n_critics,
             share_features_extractor=share_features_extractor,
+            actor_average_tau=actor_average_tau,
         )
 
     @property
@@ -519,24 +502,8 @@ class ADCPolicy(TD3Policy):
 
     def _get_constructor_parameters(self) -> dict[str, Any]:
         data = super()._get_constructor_parameters()
-        data.update(self.dueling_kwargs, actor_average_tau=self.actor_average_tau)
+        data.update(self.dueling_kwargs)
         return data
-
-    def _build(self, lr_schedule: Schedule) -> None:
-        super()._build(lr_schedule)
-        self.actor_average = None
-        if self.actor_average_tau > 0:
-            # Initialised without drawing from torch's generator, so that a seeded run learns exactly what it
-            # would without the average.
-            with th.random.fork_rng(devices=[]):
-                self.actor_average = self.make_actor(features_extractor=None)
-            self.actor_average.load_state_dict(self.actor.state_dict())
-            self.actor_average.set_training_mode(False)
-
-    def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
-        if deterministic and self.actor_average is not None:
-            return self.actor_average(observation)
-        return self.actor(observation)
 
     def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None) -> DuelingIntervalCritic:  # type: ignore[override]
         critic_kwargs = self._update_features_extractor(self.critic_kwargs, features_extractor)

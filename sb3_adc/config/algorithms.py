@@ -8,14 +8,16 @@ from sb3_adc.config.allowlists import AllowList
 from sb3_adc.config.errors import HyperparamsError
 
 #: ``--algo`` name -> algorithm class. ``ddpg`` is SB3's DDPG with an optional ``critic_learning_rate``
-#: (:class:`~sb3_adc.baselines.SplitRateDDPG`, identical to SB3's DDPG without it). Add your own with
+#: (:class:`~sb3_adc.baselines.SplitRateDDPG`, identical to SB3's DDPG without it); ``td3`` is SB3's TD3 with an
+#: optional averaged actor (:class:`~sb3_adc.baselines.AveragedActorTD3`, ``policy_kwargs`` ``actor_average_tau``,
+#: identical to SB3's TD3 without it). Add your own with
 #: ``ALGORITHMS.add("name", AlgorithmClass)`` (and a ``name.yml`` hyperparameter file).
 ALGORITHMS = AllowList(
     "algorithm",
     {
         "adc": "sb3_adc.adc:ADC",
         "ddpg": "sb3_adc.baselines:SplitRateDDPG",
-        "td3": "stable_baselines3:TD3",
+        "td3": "sb3_adc.baselines:AveragedActorTD3",
         "sac": "stable_baselines3:SAC",
         "dqn": "stable_baselines3:DQN",
         "vanilla_ac": "sb3_adc.baselines:VanillaActorCritic",

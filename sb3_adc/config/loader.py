@@ -34,7 +34,14 @@ from sb3_adc.config.allowlists import CALLBACKS, ENV_WRAPPERS, EXPRESSION_NAMES,
 from sb3_adc.config.errors import HyperparamsError, short_repr
 from sb3_adc.config.experiment_config import ExperimentConfig, NoiseSpec
 from sb3_adc.config.expressions import parse_expression
-from sb3_adc.config.schema import ADC_POLICY_KEYS, EPSILON_NOISE_KEYS, accepted_keys, constructor_keys
+from sb3_adc.config.schema import (
+    ADC_POLICY_KEYS,
+    EPSILON_NOISE_KEYS,
+    accepted_keys,
+    constructor_keys,
+    policy_kwargs_keys,
+)
+from sb3_adc.config.validators import Validator
 
 #: The package holding the shipped hyperparameter files.
 HYPERPARAMS_PACKAGE = "sb3_adc.hyperparams"
@@ -384,7 +391,7 @@ def resolve_entry(
     noise = _resolve_noise(values, source, n_envs)
 
     model_kwargs: dict[str, Any] = {"policy": _resolve_policy(values["policy"], algorithm_class, source)}
-    policy_kwargs = _resolve_policy_kwargs(values, source)
+    policy_kwargs = _resolve_policy_kwargs(values, source, policy_kwargs_keys(algorithm_class, is_adc(algorithm_class)))
     if policy_kwargs:
         model_kwargs["policy_kwargs"] = policy_kwargs
     for name in constructor_keys(algorithm_class):
@@ -464,8 +471,10 @@ def _kwargs_from(value: dict[str, Any] | str | None, source: str, key: str) -> d
     return resolved
 
 
-def _resolve_policy_kwargs(values: dict[str, Any], source: str) -> dict[str, Any]:
+def _resolve_policy_kwargs(values: dict[str, Any], source: str, checked: dict[str, Validator]) -> dict[str, Any]:
     policy_kwargs = _kwargs_from(values.get("policy_kwargs"), source, "policy_kwargs")
+    for name in sorted(checked.keys() & policy_kwargs.keys()):
+        policy_kwargs[name] = checked[name](policy_kwargs[name], source, f"policy_kwargs.{name}")
     for name in ADC_POLICY_KEYS:
         if name not in values:
             continue

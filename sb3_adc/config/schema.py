@@ -14,7 +14,8 @@ import inspect
 from stable_baselines3.common.base_class import BaseAlgorithm
 
 from sb3_adc.adc.intervals import AGGREGATIONS, INTERPOLATIONS, check_n_intervals
-from sb3_adc.adc.policies import CRITIC_DESIGNS, check_actor_average_tau
+from sb3_adc.adc.policies import CRITIC_DESIGNS
+from sb3_adc.common.actor_average import ActorAverageTD3Policy, check_actor_average_tau
 from sb3_adc.config import validators as v
 
 #: RL-Zoo keys read by the experiment tooling itself.
@@ -142,3 +143,21 @@ def accepted_keys(algorithm_class: type[BaseAlgorithm], adc_keys: bool) -> dict[
     if adc_keys:
         keys.update(ADC_POLICY_KEYS)
     return keys
+
+
+def policy_kwargs_keys(algorithm_class: type[BaseAlgorithm], adc_keys: bool) -> dict[str, v.Validator]:
+    """
+    The ``policy_kwargs`` keys checked when the entry is read (with the validators of the same options at the top
+    level), so that a wrong value is an error naming the key rather than a traceback when the model is built:
+    ADC's policy options for ADC, ``actor_average_tau`` for an algorithm whose ``MlpPolicy`` keeps an averaged actor
+    (TD3). Other keys are the policy's to check.
+
+    :param algorithm_class: The algorithm
+    :param adc_keys: Whether ADC's policy options are accepted
+    """
+    if adc_keys:
+        return dict(ADC_POLICY_KEYS)
+    mlp_policy = getattr(algorithm_class, "policy_aliases", {}).get("MlpPolicy")
+    if isinstance(mlp_policy, type) and issubclass(mlp_policy, ActorAverageTD3Policy):
+        return {"actor_average_tau": ADC_POLICY_KEYS["actor_average_tau"]}
+    return {}

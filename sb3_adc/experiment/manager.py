@@ -50,11 +50,12 @@ from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings
 
 def register_algorithms() -> None:
     """
-    Add sb3-adc's algorithms to the Zoo's ``ALGOS`` table, the only way the Zoo takes algorithms: ``adc``,
-    ``vanilla_ac``, and ``ddpg`` as :class:`~sb3_adc.baselines.SplitRateDDPG` (SB3's DDPG plus
-    ``critic_learning_rate``, identical without it). The other names already map to the same SB3 classes.
+    Add sb3-adc's algorithms (:data:`~sb3_adc.config.algorithms.ALGORITHMS`) to the Zoo's ``ALGOS`` table, the
+    only way the Zoo takes algorithms: ``adc``, ``vanilla_ac``, ``ddpg`` as :class:`~sb3_adc.baselines.SplitRateDDPG`
+    (SB3's DDPG plus ``critic_learning_rate``, identical without it) and ``td3`` as
+    :class:`~sb3_adc.baselines.AveragedActorTD3` (SB3's TD3 plus ``actor_average_tau``, identical without it).
     """
-    for name in ("adc", "vanilla_ac", "ddpg"):
+    for name in ALGORITHMS.names():
         ALGOS[name] = ALGORITHMS.resolve(name, "sb3_adc.experiment.manager", "algo")  # type: ignore[assignment]
 
 

@@ -10,7 +10,8 @@ from sb3_adc.zoo.bridge import main
 
 
 def register_algorithms() -> None:
-    """Add ``adc``, ``vanilla_ac`` and ``ddpg`` (with a critic learning rate) to ``rl_zoo3.utils.ALGOS``."""
+    """Add sb3-adc's algorithms (``adc``, ``vanilla_ac``, ``ddpg`` with a critic learning rate, ``td3`` with an
+    averaged actor, and every name added to ``sb3_adc.config.algorithms.ALGORITHMS``) to ``rl_zoo3.utils.ALGOS``."""
     with requires_extra("zoo", "sb3_adc.zoo.register_algorithms"):
         from sb3_adc.experiment.manager import register_algorithms as register
 

@@ -7,7 +7,8 @@ import torch as th
 from stable_baselines3.common.logger import configure
 
 from sb3_adc import ADC
-from sb3_adc.adc.policies import ADCPolicy, check_actor_average_tau
+from sb3_adc.adc.policies import ADCPolicy
+from sb3_adc.common.actor_average import check_actor_average_tau
 
 NET = dict(net_arch=[8], n_intervals=4, value_net_arch=[4])
 

@@ -11,7 +11,7 @@ from stable_baselines3 import DDPG, TD3
 from stable_baselines3.common.buffers import NStepReplayBuffer
 
 from sb3_adc import ADC
-from sb3_adc.baselines import SplitRateDDPG, VanillaActorCritic
+from sb3_adc.baselines import AveragedActorTD3, SplitRateDDPG, VanillaActorCritic
 from sb3_adc.common.model_files import LOADED_N_STEP_WARNING, ModelFileError, model_file_error
 
 
@@ -22,7 +22,7 @@ def adc_file(tmp_path_factory):
     return path
 
 
-@pytest.mark.parametrize("algorithm", [SplitRateDDPG, VanillaActorCritic])
+@pytest.mark.parametrize("algorithm", [SplitRateDDPG, AveragedActorTD3, VanillaActorCritic])
 def test_ddpg_baselines_refuse_an_adc_file(adc_file, algorithm):
     with pytest.raises(TypeError, match=r"adc\.zip.*got the ADC policy \w+.*Load it with sb3_adc\.ADC\.load"):
         algorithm.load(adc_file)

@@ -6,7 +6,7 @@ import pytest
 import torch as th
 from gymnasium import spaces
 
-from sb3_adc.baselines import SplitRateDDPG, VanillaActorCritic
+from sb3_adc.baselines import AveragedActorTD3, SplitRateDDPG, VanillaActorCritic
 from sb3_adc.common.model_files import ModelFileError
 
 TINY = dict(net_arch=[8])
@@ -23,7 +23,7 @@ class TwoActionPendulum(gym.ActionWrapper):
         return action[:1]
 
 
-@pytest.mark.parametrize("algorithm", [SplitRateDDPG, VanillaActorCritic])
+@pytest.mark.parametrize("algorithm", [SplitRateDDPG, AveragedActorTD3, VanillaActorCritic])
 def test_set_parameters_across_action_dimensions_names_the_shapes(tmp_path, algorithm):
     path = tmp_path / "two.zip"
     algorithm("MlpPolicy", TwoActionPendulum(), policy_kwargs=TINY).save(path)

@@ -57,6 +57,25 @@ def test_adc_top_level_keys_merge_into_policy_kwargs_and_conflicts_are_errors():
         resolve_entry("ddpg", "Pendulum-v1", {"n_timesteps": 10, "policy": "MlpPolicy", "n_intervals": 60}, SOURCE)
 
 
+def test_policy_options_inside_policy_kwargs_are_checked_where_the_entry_is_read():
+    # The same validators as the top-level keys, so that a wrong value never reaches the policy's constructor.
+    with pytest.raises(HyperparamsError, match=r"`policy_kwargs\.actor_average_tau`: `actor_average_tau` must be"):
+        adc({"policy_kwargs": "dict(net_arch=[64], actor_average_tau=2)"})
+    with pytest.raises(HyperparamsError, match=r"`policy_kwargs\.n_intervals`: `n_intervals` must be an integer >= 2"):
+        adc({"policy_kwargs": {"n_intervals": 1}})
+    assert adc({"policy_kwargs": {"n_intervals": 1e2}}).model_kwargs["policy_kwargs"] == {"n_intervals": 100}
+
+    def td3(policy_kwargs):
+        entry = {"n_timesteps": 10, "policy": "MlpPolicy", "policy_kwargs": policy_kwargs}
+        return resolve_entry("td3", "Pendulum-v1", entry, SOURCE)
+
+    # TD3's MlpPolicy keeps an averaged actor; its other options (and ADC's) are the policy's to check.
+    assert td3({"actor_average_tau": 1e-4}).model_kwargs["policy_kwargs"] == {"actor_average_tau": 1e-4}
+    with pytest.raises(HyperparamsError, match=r"`policy_kwargs\.actor_average_tau`: .* got -0\.5"):
+        td3({"actor_average_tau": -0.5})
+    assert td3({"n_intervals": 1}).model_kwargs["policy_kwargs"] == {"n_intervals": 1}
+
+
 def test_schedules_and_model_values():
     config = adc({"learning_rate": "lin_1e-3", "critic_learning_rate": 0.002, "train_freq": [1, "episode"], "gamma": 1})
     schedule = config.model_kwargs["learning_rate"]

@@ -11,7 +11,7 @@ import yaml
 pytest.importorskip("rl_zoo3")
 
 from sb3_adc import ADC
-from sb3_adc.baselines import DuelingDQNPolicy, SplitRateDDPG
+from sb3_adc.baselines import AveragedActorTD3, DuelingDQNPolicy, SplitRateDDPG
 from sb3_adc.common.noise import EpsilonGaussianNoise
 from sb3_adc.zoo import main
 
@@ -154,6 +154,7 @@ def test_zoo_algos_table_and_usage(capsys):
     register_algorithms()
     assert ALGOS["adc"] is ADC
     assert ALGOS["ddpg"] is SplitRateDDPG
+    assert ALGOS["td3"] is AveragedActorTD3
     assert main([]) == 2
     assert "usage: python -m sb3_adc.zoo {train,enjoy}" in capsys.readouterr().err
 

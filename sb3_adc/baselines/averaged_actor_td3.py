@@ -1,0 +1,39 @@
+"""SB3's TD3 with the averaged actor ADC can deploy, so that a comparison can give both algorithms the same option."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.td3.policies import CnnPolicy, MultiInputPolicy
+
+from sb3_adc.adc.policies import ADCPolicy
+from sb3_adc.common.actor_average import ActorAverageTD3Policy, TD3WithActorAverage
+from sb3_adc.common.model_files import CheckedModelFiles
+
+
+class AveragedActorTD3(CheckedModelFiles, TD3WithActorAverage):
+    """
+    Twin Delayed DDPG (SB3's :class:`~stable_baselines3.TD3`, update for update) whose ``MlpPolicy`` takes
+    ``actor_average_tau``: the deployed policy is then a Polyak average of the actor's iterates, as
+    :class:`~sb3_adc.ADC` can deploy (:mod:`sb3_adc.common.actor_average`). Without it (the default) the model is
+    SB3's TD3.
+
+    Unlike SB3's TD3 it refuses an :class:`~sb3_adc.adc.policies.ADCPolicy` (SB3's ``TD3.load`` of an ADC model file
+    silently trains the ADC policy with TD3's update), and its ``load`` and ``set_parameters`` errors name the file
+    (see :meth:`sb3_adc.ADC.load`). The constructor's parameters are SB3's TD3's.
+    """
+
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
+        "MlpPolicy": ActorAverageTD3Policy,
+        "CnnPolicy": CnnPolicy,
+        "MultiInputPolicy": MultiInputPolicy,
+    }
+
+    def _setup_model(self) -> None:
+        if isinstance(self.policy_class, type) and issubclass(self.policy_class, ADCPolicy):
+            raise TypeError(
+                f"`policy` must be a TD3 (TD3Policy) policy, got the ADC policy {self.policy_class.__name__}. "
+                "(Loading a model file saved by ADC? Load it with sb3_adc.ADC.load.)"
+            )
+        super()._setup_model()
