@@ -55,6 +55,10 @@ SIGHTINGS = ["hit_obstacle", "hit_unseen"]
 COMPARISONS = [
     ("LidarObstacleCourse-v1_n_step_150k_sectors_validation", "LidarObstacleCourse-v1_n_step_150k_validation"),
     ("LidarObstacleCourse-v1_n_step_150k_sectors_validation_best", "LidarObstacleCourse-v1_n_step_150k_validation_best"),
+    (
+        "LidarObstacleCourse-v1_n_step_150k_sectors_average_validation",
+        "LidarObstacleCourse-v1_n_step_150k_sectors_average_validation_actor_itself",
+    ),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
