@@ -401,6 +401,21 @@ def _make_network(
     )
 
 
+def refuse_adc_policy(policy_class: object, algorithm: str) -> None:
+    """
+    Raise ``TypeError`` if ``policy_class`` is ADC's policy: for the TD3-family baselines, whose ``load`` of an ADC
+    model file (as SB3's does) would otherwise build the ADC policy and train it with their own update.
+
+    :param policy_class: The policy class the algorithm is about to build
+    :param algorithm: The algorithm's name in the message (``"DDPG"``, ``"TD3"``)
+    """
+    if isinstance(policy_class, type) and issubclass(policy_class, ADCPolicy):
+        raise TypeError(
+            f"`policy` must be a {algorithm} (TD3Policy) policy, got the ADC policy {policy_class.__name__}. "
+            "(Loading a model file saved by ADC? Load it with sb3_adc.ADC.load.)"
+        )
+
+
 class ADCPolicy(ActorAverageTD3Policy):
     """
     Policy class (an actor and a dueling interval critic, with their target networks) for ADC.

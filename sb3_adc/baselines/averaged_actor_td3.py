@@ -7,7 +7,7 @@ from typing import ClassVar
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.td3.policies import CnnPolicy, MultiInputPolicy
 
-from sb3_adc.adc.policies import ADCPolicy
+from sb3_adc.adc.policies import refuse_adc_policy
 from sb3_adc.common.actor_average import ActorAverageTD3Policy, TD3WithActorAverage
 from sb3_adc.common.model_files import CheckedModelFiles
 
@@ -31,9 +31,5 @@ class AveragedActorTD3(CheckedModelFiles, TD3WithActorAverage):
     }
 
     def _setup_model(self) -> None:
-        if isinstance(self.policy_class, type) and issubclass(self.policy_class, ADCPolicy):
-            raise TypeError(
-                f"`policy` must be a TD3 (TD3Policy) policy, got the ADC policy {self.policy_class.__name__}. "
-                "(Loading a model file saved by ADC? Load it with sb3_adc.ADC.load.)"
-            )
+        refuse_adc_policy(self.policy_class, "TD3")
         super()._setup_model()

@@ -11,7 +11,7 @@ from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from stable_baselines3.td3.policies import TD3Policy
 
-from sb3_adc.adc.policies import ADCPolicy
+from sb3_adc.adc.policies import refuse_adc_policy
 from sb3_adc.common.critic_learning_rate import TD3WithCriticLearningRate
 from sb3_adc.common.model_files import CheckedModelFiles
 
@@ -107,9 +107,5 @@ class SplitRateDDPG(CheckedModelFiles, TD3WithCriticLearningRate, DDPG):
             self._setup_model()
 
     def _setup_model(self) -> None:
-        if isinstance(self.policy_class, type) and issubclass(self.policy_class, ADCPolicy):
-            raise TypeError(
-                f"`policy` must be a DDPG (TD3Policy) policy, got the ADC policy {self.policy_class.__name__}. "
-                "(Loading a model file saved by ADC? Load it with sb3_adc.ADC.load.)"
-            )
+        refuse_adc_policy(self.policy_class, "DDPG")
         super()._setup_model()
