@@ -128,6 +128,8 @@ class ActorAverageTD3Policy(TD3Policy):
     def _build(self, lr_schedule: Schedule) -> None:
         super()._build(lr_schedule)
         self.actor_average = None
+        # The parameter lists of the update, gathered once rather than at every actor update (a training hot path).
+        self._average_parameters: tuple[list[nn.Parameter], list[nn.Parameter]] | None = None
         if self.actor_average_tau > 0:
             # Initialised without drawing from torch's generator, so that a seeded run learns exactly what it
             # would without the average.
@@ -135,6 +137,7 @@ class ActorAverageTD3Policy(TD3Policy):
                 self.actor_average = self.make_actor(features_extractor=None)
             self.actor_average.load_state_dict(self.actor.state_dict())
             self.actor_average.set_training_mode(False)
+            self._average_parameters = (list(self.actor.parameters()), list(self.actor_average.parameters()))
 
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
         if deterministic and self.actor_average is not None:
@@ -150,10 +153,10 @@ class ActorAverageTD3Policy(TD3Policy):
             the model, so that a resumed run goes on with the same weights)
         :param n_new: Actor updates since the last call
         """
-        if self.actor_average is None:
+        if self._average_parameters is None:
             return
         weight = actor_average_weight(self.actor_average_tau, n_actor_updates, n_new)
-        polyak_update(self.actor.parameters(), self.actor_average.parameters(), weight)
+        polyak_update(*self._average_parameters, weight)
 
     def drop_actor_average(self) -> bool:
         """
@@ -164,6 +167,7 @@ class ActorAverageTD3Policy(TD3Policy):
         """
         had_average = self.actor_average is not None
         self.actor_average = None
+        self._average_parameters = None
         return had_average
 
 
