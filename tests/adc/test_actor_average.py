@@ -1,5 +1,6 @@
 """ADCPolicy's averaged actor (``actor_average_tau``): the averaging rule, that it leaves learning unchanged, which
-predictions use it, and that it survives saving, loading and further training."""
+predictions use it, and that it survives saving, loading and further training (the last two also for
+AveragedActorTD3, whose policy keeps the same average; its own rule per training call is tested with it)."""
 
 import numpy as np
 import pytest
@@ -8,14 +9,18 @@ from stable_baselines3.common.logger import configure
 
 from sb3_adc import ADC
 from sb3_adc.adc.policies import ADCPolicy
+from sb3_adc.baselines import AveragedActorTD3
 from sb3_adc.common.actor_average import check_actor_average_tau
 
 NET = dict(net_arch=[8], n_intervals=4, value_net_arch=[4])
+#: The networks of each algorithm whose policy keeps the average.
+NETS = {ADC: NET, AveragedActorTD3: dict(net_arch=[8])}
 
 
-def make(actor_average_tau=0.0, policy_delay=2, seed=3, learning_starts=50, **kwargs):
-    policy_kwargs = {**NET, "actor_average_tau": actor_average_tau} if actor_average_tau else dict(NET)
-    return ADC(
+def make(actor_average_tau=0.0, policy_delay=2, seed=3, learning_starts=50, algorithm=ADC, **kwargs):
+    net = NETS[algorithm]
+    policy_kwargs = {**net, "actor_average_tau": actor_average_tau} if actor_average_tau else dict(net)
+    return algorithm(
         "MlpPolicy",
         "Pendulum-v1",
         learning_starts=learning_starts,
@@ -80,8 +85,9 @@ def test_the_average_does_not_change_what_is_learned():
     np.testing.assert_array_equal(plain.replay_buffer.actions[:size], averaged.replay_buffer.actions[:size])
 
 
-def test_deterministic_predictions_use_the_average_and_the_others_the_actor():
-    model = make(actor_average_tau=0.05).learn(300)
+@pytest.mark.parametrize("algorithm", [ADC, AveragedActorTD3])
+def test_deterministic_predictions_use_the_average_until_it_is_dropped(algorithm):
+    model = make(actor_average_tau=0.05, algorithm=algorithm).learn(300)
     observations = np.random.default_rng(0).uniform(-1, 1, size=(5, 3)).astype(np.float32)
     with th.no_grad():
         tensor = th.as_tensor(observations)
@@ -93,13 +99,18 @@ def test_deterministic_predictions_use_the_average_and_the_others_the_actor():
     stochastic, _ = model.predict(observations, deterministic=False)
     np.testing.assert_allclose(model.policy.scale_action(deterministic), average, atol=1e-6)
     np.testing.assert_allclose(model.policy.scale_action(stochastic), actor, atol=1e-6)
+    assert model.policy.drop_actor_average()
+    assert not model.policy.drop_actor_average()  # nothing left to drop
+    deterministic, _ = model.predict(observations, deterministic=True)
+    np.testing.assert_allclose(model.policy.scale_action(deterministic), actor, atol=1e-6)
 
 
-def test_a_saved_model_keeps_its_average_and_goes_on_averaging(tmp_path):
-    model = make(actor_average_tau=0.01).learn(200)
+@pytest.mark.parametrize("algorithm", [ADC, AveragedActorTD3])
+def test_a_saved_model_keeps_its_average_and_goes_on_averaging(tmp_path, algorithm):
+    model = make(actor_average_tau=0.01, algorithm=algorithm).learn(200)
     model.save(tmp_path / "model.zip")
     model.save_replay_buffer(tmp_path / "buffer.pkl")
-    loaded = ADC.load(tmp_path / "model.zip", env=model.get_env())
+    loaded = algorithm.load(tmp_path / "model.zip", env=model.get_env())
     assert loaded.policy.actor_average_tau == 0.01
     average = vector(model.policy.actor_average)
     th.testing.assert_close(vector(loaded.policy.actor_average), average, rtol=0, atol=0)

@@ -1,6 +1,7 @@
 """AveragedActorTD3: SB3's TD3 update for update without ``actor_average_tau``; with it, the averaged actor of ADC
-(the rule per training call, unchanged learning, which predictions use it, files; refusing ADC files is tested
-with the other baselines in tests/adc/test_model_files.py), and the ``td3`` name's class."""
+(the rule per training call, unchanged learning, SB3 files; which predictions use the average and saving it are
+tested with ADC's in tests/adc/test_actor_average.py, refusing ADC files with the other baselines in
+tests/adc/test_model_files.py), and the ``td3`` name's class."""
 
 import numpy as np
 import pytest
@@ -89,42 +90,6 @@ def test_the_weight_of_one_update_is_max_tau_and_one_over_n_and_of_several_their
     for n_new in (0, 9):
         with pytest.raises(ValueError, match="`n_new` must be between 1 and `n_actor_updates` \\(8\\)"):
             actor_average_weight(0.1, 8, n_new=n_new)
-
-
-def test_deterministic_predictions_use_the_average_until_it_is_dropped():
-    model = make(actor_average_tau=0.05).learn(300)
-    observations = np.random.default_rng(0).uniform(-1, 1, size=(5, 3)).astype(np.float32)
-    with th.no_grad():
-        tensor = th.as_tensor(observations)
-        average = model.policy.actor_average(tensor).numpy()
-        actor = model.actor(tensor).numpy()
-    assert np.abs(average - actor).max() > 1e-3
-    deterministic, _ = model.predict(observations, deterministic=True)
-    stochastic, _ = model.predict(observations, deterministic=False)
-    np.testing.assert_allclose(model.policy.scale_action(deterministic), average, atol=1e-6)
-    np.testing.assert_allclose(model.policy.scale_action(stochastic), actor, atol=1e-6)
-    assert model.policy.drop_actor_average()
-    assert not model.policy.drop_actor_average()  # nothing left to drop
-    deterministic, _ = model.predict(observations, deterministic=True)
-    np.testing.assert_allclose(model.policy.scale_action(deterministic), actor, atol=1e-6)
-
-
-def test_a_saved_model_keeps_its_average_and_goes_on_averaging(tmp_path):
-    model = make(actor_average_tau=0.01).learn(200)
-    model.save(tmp_path / "model.zip")
-    model.save_replay_buffer(tmp_path / "buffer.pkl")
-    loaded = AveragedActorTD3.load(tmp_path / "model.zip", env=model.get_env())
-    assert loaded.policy.actor_average_tau == 0.01
-    average = vector(model.policy.actor_average)
-    th.testing.assert_close(vector(loaded.policy.actor_average), average, rtol=0, atol=0)
-    loaded.load_replay_buffer(tmp_path / "buffer.pkl")
-    loaded.set_logger(configure(None, []))
-    n_updates = loaded._n_updates
-    loaded.train(gradient_steps=2, batch_size=16)
-    assert loaded._n_updates == n_updates + 2
-    weight = actor_average_weight(0.01, loaded._n_updates // 2)
-    assert weight < 1  # weighed by the updates so far, not as a first update
-    th.testing.assert_close(vector(loaded.policy.actor_average), (1 - weight) * average + weight * vector(loaded.actor))
 
 
 def test_a_model_file_saved_by_sb3s_td3_loads_and_trains(tmp_path):
