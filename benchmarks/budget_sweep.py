@@ -1,10 +1,11 @@
 """
 Does ADC reach the >= 90% success target on unseen procedural layouts with a larger training budget or a longer
-horizon? The shipped ``sb3_adc/LidarObstacleCourse-v1`` entry trains for 30,000 steps with gamma 0.9 and reaches a
-held-out success IQM of 0.18 (``procedural_generalisation.py``). This sweep trains ADC with the shipped entry and
-with each ``--gammas`` value for ``--n-timesteps`` (default 100,000) and keeps a checkpoint every tenth of the
-budget; each checkpoint is a model trained for that many steps (nothing in the entry depends on the total budget:
-constant learning rates, an exploration schedule in steps), so one run gives the whole budget curve.
+horizon? The ``sb3_adc/LidarObstacleCourse-v1`` entry as first shipped trains for 30,000 steps with gamma 0.9 and
+reaches a held-out success IQM of 0.18 (``procedural_generalisation.py``). This sweep trains ADC with that entry
+(the configuration named ``shipped``) and with each ``--gammas`` value for ``--n-timesteps`` (default 100,000) and
+keeps a checkpoint every tenth of the budget; each checkpoint is a model trained for that many steps (nothing in
+the entry depends on the total budget: constant learning rates, an exploration schedule in steps), so one run gives
+the whole budget curve.
 
 Every checkpoint is scored, deterministically, on the validation layouts (``VALIDATION_LAYOUT_SEEDS``,
 2,000,000-2,000,099, ``--layouts`` of them): a split that neither training (0-999,999) nor the held-out test set
@@ -18,9 +19,13 @@ Training is ``sb3-adc benchmark``'s engine (resumable, one process per run); the
 (``sweep.csv``: one row per run and checkpoint; ``curves.csv``: mean and IQM across runs with 95% CIs;
 ``summary.md``), the figure to ``docs/_static/benchmarks/budget_sweep_{name}.png``.
 
-``--configs FILE`` replaces the shipped entry and ``--gammas`` with the configurations of a YAML file (a mapping of
+``--configs FILE`` replaces that entry and ``--gammas`` with the configurations of a YAML file (a mapping of
 configuration name to ``key: value`` overrides of the entry, checked as the engine checks ``-params``); its results
 go to a folder named after the file (``{env}_{algo}_{file stem}``).
+
+Every configuration overrides the algorithm's starting entry, the ``-v1`` entry as shipped when the studies began,
+frozen in ``benchmarks/configs/starting_entries/`` (``STARTING_ENTRIES`` of ``procedural_generalisation.py``): a
+sweep keeps meaning what it meant when it ran whatever the shipped entries become.
 
 Usage::
 
@@ -46,6 +51,7 @@ import numpy as np
 import pandas as pd
 import torch as th
 from procedural_generalisation import (
+    STARTING_ENTRIES,
     drop_actor_average,
     layout_success,
     load_for_scoring,
@@ -143,7 +149,7 @@ def main() -> None:
     parser.add_argument("--env", default="sb3_adc/LidarObstacleCourse-v1", help="the procedural environment id")
     parser.add_argument("--algo", default="adc", choices=["adc", "ddpg", "td3", "sac"])
     parser.add_argument("--gammas", type=float, nargs="*", default=[0.98], help="discounts tried beside the entry's")
-    parser.add_argument("--configs", help="YAML file of configurations (name -> overrides) instead of shipped and --gammas")
+    parser.add_argument("--configs", help="YAML file of configurations (name -> overrides) instead of the entry and --gammas")
     parser.add_argument("--seeds", type=int, nargs="+", default=TUNING_SEEDS, help="tuning seeds (0-4)")
     parser.add_argument("-n", "--n-timesteps", type=int, default=100_000, help="budget of every run")
     parser.add_argument("--layouts", type=int, default=50, help="validation layouts per checkpoint")
@@ -190,6 +196,7 @@ def main() -> None:
             log_folder=str(RUNS_DIR / name / config.replace(" ", "_")),
             n_timesteps=n_timesteps,
             overrides=overrides,
+            conf_folder=str(STARTING_ENTRIES),
             eval_freq=n_timesteps // N_CHECKPOINTS,
             eval_episodes=5,
             final_eval_episodes=20,
@@ -229,7 +236,8 @@ def main() -> None:
         "algo": args.algo,
         "configs": configs,
         "configs_file": repository_path(args.configs) if args.configs else None,
-        "hyperparams": "shipped (hyperparams/{algo}.yml) with each config's overrides",
+        "hyperparams": f"starting entries ({repository_path(str(STARTING_ENTRIES))}/{{algo}}.yml) with each config's "
+        "overrides",
         "seeds": seeds,
         "n_timesteps": n_timesteps,
         "checkpoint_every": n_timesteps // N_CHECKPOINTS,

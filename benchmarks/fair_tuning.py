@@ -19,8 +19,9 @@ fresh seeds) and ``summary.md``.
 trial's value is the success rate on the validation layouts (``VALIDATION_LAYOUT_SEEDS``, which neither training
 nor the held-out test set uses), so the test layouts, the course files and the reporting seeds stay unseen. Every
 algorithm gets the discount and clearance shaping that the budget sweeps found (``LIDAR_FIXED``, outside the
-search), starts from its shipped entry with what the sweeps found (``configs/lidar_start/``: the buffer for all,
-for ADC also TD3's additions and a lower actor rate), and searches its own space with the choices of
+search), starts from its ``-v1`` starting entry (``configs/starting_entries/``, the entry shipped when the studies
+began) with what the sweeps found (``configs/lidar_start/``: the buffer for all, for ADC also TD3's additions and a
+lower actor rate), and searches its own space with the choices of
 ``LIDAR_SEARCH_SPACE``: the replay buffer for all, and for ADC, whose critic TD3's additions do not come with, the
 twin critics, target smoothing and delayed actor updates (TD3 has them built in; DDPG's identity is to have none).
 Its files go to ``benchmarks/runs/fair_tuning_lidar/`` and ``benchmarks/results/fair_tuning_lidar/``.

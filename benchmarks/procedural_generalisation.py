@@ -14,10 +14,13 @@ run the success rate of each test set; per algorithm and test set, the IQM and m
 stratified-bootstrap CIs (rliable), and the probability that ADC's rate exceeds each other algorithm's. The paths
 of every run on the first ``--trajectory-layouts`` held-out layouts are kept (``trajectories.csv.gz``) and drawn.
 
-``--configs FILE`` trains the algorithms a YAML file names, each with its overrides of the shipped entry (a mapping
+``--configs FILE`` trains the algorithms a YAML file names, each with its overrides of its starting entry (a mapping
 of algorithm to ``key: value`` overrides, checked as the engine checks ``-params``; ``n_timesteps`` sets the
 budget); its results go to folders named after the file (``{env}_{file stem}``). ``--algos`` with it trains a subset
-of the file's algorithms (the metadata records which).
+of the file's algorithms (the metadata records which). The starting entries (``STARTING_ENTRIES``,
+``benchmarks/configs/starting_entries/``) are the ``-v1`` entries as shipped when the studies began, frozen: a
+configuration file keeps meaning what it meant when it ran whatever the shipped entries become. Without
+``--configs`` the algorithms train with the shipped entries as they are.
 
 ``--model best`` scores each run's ``best_model.zip`` instead of its final model: the model of the run's periodic
 evaluation with the best mean return (SB3's ``EvalCallback`` rule, the RL Zoo's ``--load-best``: 20 evaluations of
@@ -87,6 +90,10 @@ RUNS_DIR = ROOT / "runs" / "procedural_generalisation"
 RESULTS_DIR = ROOT / "results" / "procedural_generalisation"
 DOCS_STATIC = ROOT.parent / "docs" / "_static" / "benchmarks"
 COURSES_DIR = ROOT.parent / "envs" / "courses"
+#: The entries that the ``--configs`` files of this script and of ``budget_sweep.py`` override, one ``{algo}.yml``
+#: per algorithm: the ``-v1`` entries as shipped when the studies began (30,000 steps, not tuned on ``-v1``), kept
+#: apart from ``hyperparams/`` so that a configuration file means what it meant when it ran.
+STARTING_ENTRIES = ROOT / "configs" / "starting_entries"
 
 ALGOS = ["adc", "ddpg", "td3", "sac"]
 SEEDS = list(range(1000, 1010))
@@ -141,7 +148,7 @@ def repository_path(path: str) -> str:
 def read_configs(path: str) -> dict[str, dict[str, Any]]:
     """
     The configurations of a ``--configs`` file: configuration name (an algorithm, for this script) -> overrides of
-    the shipped entry.
+    the starting entry (:func:`starting_entry`).
 
     :raises HyperparamsError: for a file that is not a non-empty mapping of names to mappings
     """
@@ -154,6 +161,11 @@ def read_configs(path: str) -> dict[str, dict[str, Any]]:
         if not isinstance(overrides, dict):
             raise HyperparamsError(path, name, f"must be a mapping of key: value overrides, got {type(overrides).__name__}")
     return content
+
+
+def starting_entry(algo: str) -> str:
+    """The hyperparameter file whose entries the configuration files override for ``algo`` (:data:`STARTING_ENTRIES`)."""
+    return str(STARTING_ENTRIES / f"{algo}.yml")
 
 
 class EpisodeOutcome(NamedTuple):
@@ -428,15 +440,17 @@ def validation_table(evaluations: pd.DataFrame) -> pd.DataFrame:
     return evaluations[["algo", "seed", "timesteps", "success_rate", "mean_return", "n_episodes"]].reset_index(drop=True)
 
 
-def robot_overrides(algo: str, env_id: str, robot: str, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+def robot_overrides(
+    algo: str, env_id: str, robot: str, overrides: dict[str, Any] | None = None, conf_file: str | None = None
+) -> dict[str, Any]:
     """
-    ``overrides`` (of a ``--configs`` file) with another robot: the ``env_kwargs`` they give, or the entry's, with
-    ``robot`` (an override replaces the whole ``env_kwargs``).
+    ``overrides`` (of a ``--configs`` file) with another robot: the ``env_kwargs`` they give, or the entry's (of
+    ``conf_file``, ``None``: the shipped one), with ``robot`` (an override replaces the whole ``env_kwargs``).
     """
     overrides = dict(overrides or {})
     if robot == "kinematic":
         return overrides
-    env_kwargs = overrides.get("env_kwargs", load_hyperparams(algo, env_id).env_kwargs)
+    env_kwargs = overrides.get("env_kwargs", load_hyperparams(algo, env_id, conf_file).env_kwargs)
     return {**overrides, "env_kwargs": {**env_kwargs, "robot": robot}}
 
 
@@ -467,7 +481,9 @@ def main() -> None:
     parser.add_argument("--env", default="sb3_adc/LidarObstacleCourse-v1", help="the procedural environment id")
     parser.add_argument("--robot", choices=["kinematic", "wheeled"], default="kinematic", help="robot model")
     parser.add_argument("--algos", nargs="+", choices=ALGOS, default=ALGOS)
-    parser.add_argument("--configs", help="YAML file: algorithm -> overrides of its shipped entry (the algorithms trained)")
+    parser.add_argument(
+        "--configs", help="YAML file: algorithm -> overrides of its starting entry (the algorithms trained; see above)"
+    )
     parser.add_argument("--workers", type=int, default=1, help="parallel runs and scorings")
     parser.add_argument("--course-episodes", type=int, default=10, help="jittered episodes per course file")
     parser.add_argument("--reps", type=int, default=5000, help="bootstrap replications")
@@ -533,9 +549,11 @@ def main() -> None:
     output.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     finals, evaluations, statuses = [], [], Counter[str]()
+    conf_folder = str(STARTING_ENTRIES) if args.configs else None
     for algo in args.algos:
-        overrides = robot_overrides(algo, args.env, args.robot, configs[algo])
-        budget = budgets[algo] or load_hyperparams(algo, args.env, None, overrides).n_timesteps
+        conf_file = starting_entry(algo) if args.configs else None
+        overrides = robot_overrides(algo, args.env, args.robot, configs[algo], conf_file)
+        budget = budgets[algo] or load_hyperparams(algo, args.env, conf_file, overrides).n_timesteps
         settings = BenchmarkSettings(
             algos=[algo],
             env_ids=[args.env],
@@ -543,6 +561,7 @@ def main() -> None:
             log_folder=str(folder / algo),
             n_timesteps=budgets[algo],
             overrides=overrides,
+            conf_folder=conf_folder,
             final_eval_episodes=20,
             device="cpu",
             **periodic_evaluations(args.validation, budget, VALIDATION_EPISODES if not args.quick else 3),
@@ -614,8 +633,12 @@ def main() -> None:
             if args.configs or args.quick
             else "each entry's n_timesteps"
         ),
-        "hyperparams": "shipped (hyperparams/{algo}.yml)"
-        + (f" with the overrides of {repository_path(args.configs)}" if args.configs else ""),
+        "hyperparams": (
+            f"starting entries ({repository_path(str(STARTING_ENTRIES))}/{{algo}}.yml) with the overrides of "
+            f"{repository_path(args.configs)}"
+            if args.configs
+            else "shipped (hyperparams/{algo}.yml)"
+        ),
         **({"configs": configs} if args.configs else {}),
         "model": VALIDATION_BEST if args.validation and args.model == "best" else MODELS[args.model],
         **({"validation": periodic_evaluations(True, 0)} if args.validation else {}),

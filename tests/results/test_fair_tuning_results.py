@@ -66,16 +66,18 @@ def test_lidar_summary_and_trial_times_rebuild_from_the_trials(tmp_path):
 
 
 def test_fresh_seed_configs_are_the_winners():
-    """Each algorithm of ``configs/procedural_generalisation/fair_tuning_lidar.yml``, applied to its shipped entry
-    as ``-params`` are, is the winner file of its lidar study."""
-    from sb3_adc.config.loader import apply_overrides, packaged_hyperparams_file, read_hyperparams_file, select_entry
+    """Each algorithm of ``configs/procedural_generalisation/fair_tuning_lidar.yml``, applied to its starting entry
+    (``configs/starting_entries/``, what ``procedural_generalisation.py --configs`` overrides) as ``-params`` are,
+    is the winner file of its lidar study."""
+    from sb3_adc.config.loader import apply_overrides, read_hyperparams_file, select_entry
 
     env_id = "sb3_adc/LidarObstacleCourse-v1"
     path = ROOT / "benchmarks" / "configs" / "procedural_generalisation" / "fair_tuning_lidar.yml"
     configs = read_hyperparams_file(str(path))
     assert configs
     for algo, overrides in configs.items():
-        shipped, _ = select_entry(read_hyperparams_file(packaged_hyperparams_file(algo)), env_id, algo)
+        start_path = ROOT / "benchmarks" / "configs" / "starting_entries" / f"{algo}.yml"
+        start, _ = select_entry(read_hyperparams_file(str(start_path)), env_id, str(start_path))
         winner_path = ROOT / "benchmarks" / "results" / "fair_tuning_lidar" / "hyperparams" / f"{algo}.yml"
         winner, _ = select_entry(read_hyperparams_file(str(winner_path)), env_id, str(winner_path))
-        assert apply_overrides(shipped, overrides) == dict(winner), algo
+        assert apply_overrides(start, overrides) == dict(winner), algo

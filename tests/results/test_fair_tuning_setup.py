@@ -1,6 +1,7 @@
-"""The lidar study of ``benchmarks/fair_tuning.py`` starts every algorithm from its shipped entry changed the same
-way: each starting file differs from the shipped ``-v1`` entry only in the settings the budget sweeps found for
-every learner (and, for ADC, in the update settings they found for it), so no baseline starts handicapped."""
+"""The lidar study of ``benchmarks/fair_tuning.py`` starts every algorithm from its starting entry changed the same
+way: each starting file differs from the ``-v1`` entry the studies began with (``benchmarks/configs/starting_entries/``)
+only in the settings the budget sweeps found for every learner (and, for ADC, in the update settings they found for
+it), so no baseline starts handicapped."""
 
 from __future__ import annotations
 
@@ -11,9 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from sb3_adc.config.loader import packaged_hyperparams_file, read_hyperparams_file, select_entry
+from sb3_adc.config.loader import read_hyperparams_file, select_entry
 
 ROOT = Path(__file__).resolve().parents[2]
+STARTING_ENTRIES = ROOT / "benchmarks" / "configs" / "starting_entries"
 #: What every starting entry changes, with the values the budget sweeps found.
 COMMON = {
     "n_timesteps": 150_000,
@@ -33,20 +35,20 @@ def fair_tuning():
 
 
 @pytest.mark.parametrize("algo", ["adc", "ddpg", "td3", "sac"])
-def test_starting_entry_is_the_shipped_one_changed_alike(fair_tuning, algo):
+def test_starting_file_is_the_starting_entry_changed_alike(fair_tuning, algo):
     study = fair_tuning.STUDIES["lidar"]
     env_id = study.env_id
     path = study.starting_points[algo]
     start, _ = select_entry(read_hyperparams_file(path), env_id, path)
-    shipped_path = packaged_hyperparams_file(algo)
-    shipped, _ = select_entry(read_hyperparams_file(shipped_path), env_id, shipped_path)
+    entry_path = str(STARTING_ENTRIES / f"{algo}.yml")
+    entry, _ = select_entry(read_hyperparams_file(entry_path), env_id, entry_path)
     for key, value in COMMON.items():
         assert start[key] == value, key
     # The fixed settings of the study agree with the starting entries.
     for key, value in study.fixed.items():
         assert start[key] == value, key
     allowed = set(COMMON) | (ADC_ONLY if algo == "adc" else set())
-    changed = {key for key in set(start) | set(shipped) if start.get(key) != shipped.get(key)}
+    changed = {key for key in set(start) | set(entry) if start.get(key) != entry.get(key)}
     assert changed <= allowed, changed - allowed
     if algo == "adc":
         assert start["policy_delay"] == 2

@@ -153,6 +153,73 @@ def test_algos_trains_a_subset_of_a_configs_file_with_its_overrides(tmp_path, mo
     assert settings.log_folder == str(tmp_path / "runs" / "LidarObstacleCourse-v1_configs" / "td3")
 
 
+def _procedural_settings(tmp_path, monkeypatch, argv):
+    """The grid settings ``procedural_generalisation.py`` trains with for ``argv``, stopped before any training."""
+    import importlib
+    import sys
+
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    procedural_generalisation = importlib.import_module("procedural_generalisation")
+    monkeypatch.setattr(procedural_generalisation, "RUNS_DIR", tmp_path / "runs")
+    monkeypatch.setattr(procedural_generalisation, "RESULTS_DIR", tmp_path / "results")
+    trained = []
+
+    class Stop(Exception):
+        pass
+
+    def run_benchmark(settings, **_):
+        trained.append(settings)
+        raise Stop
+
+    monkeypatch.setattr(procedural_generalisation, "run_benchmark", run_benchmark)
+    monkeypatch.setattr(sys, "argv", ["procedural_generalisation.py", *argv])
+    try:
+        with pytest.raises(Stop):
+            procedural_generalisation.main()
+    finally:
+        sys.modules.pop("procedural_generalisation", None)
+    return trained[0]
+
+
+@pytest.mark.parametrize("robot", ["kinematic", "wheeled"])
+def test_configs_files_override_the_frozen_starting_entries_not_the_shipped_ones(tmp_path, monkeypatch, robot):
+    """A configuration file keeps its meaning when a shipped entry changes: ``--configs`` runs resolve their
+    overrides against ``benchmarks/configs/starting_entries/``, runs without it against ``hyperparams/``."""
+    import yaml
+
+    from sb3_adc.config import loader
+
+    env_id = "sb3_adc/LidarObstacleCourse-v1"
+    starting = ROOT / "benchmarks" / "configs" / "starting_entries"
+    # The shipped entry changes after the studies began: a batch size and a sensor of its own.
+    shipped = loader.read_hyperparams_file(loader.packaged_hyperparams_file("td3"))
+    shipped[env_id] = {**shipped[env_id], "batch_size": 512, "env_kwargs": {"rays_per_reading": 4}}
+    changed = tmp_path / "td3.yml"
+    changed.write_text(yaml.safe_dump(shipped))
+    packaged = loader.packaged_hyperparams_file
+    monkeypatch.setattr(loader, "packaged_hyperparams_file", lambda name: str(changed) if name == "td3" else packaged(name))
+
+    def resolved(settings):
+        run = settings.train_settings(settings.grid()[0])
+        return loader.load_hyperparams("td3", env_id, run.conf_file, run.overrides)
+
+    configs = tmp_path / "configs.yml"
+    configs.write_text("td3: {gamma: 0.96}\n")
+    settings = _procedural_settings(tmp_path, monkeypatch, ["--configs", str(configs), "--robot", robot])
+    assert settings.conf_folder == str(starting)
+    config = resolved(settings)
+    assert config.saved["gamma"] == 0.96
+    assert config.saved["batch_size"] == 64  # the starting entry's, not the changed shipped one's
+    assert "rays_per_reading" not in config.env_kwargs
+    assert config.env_kwargs.get("robot", "kinematic") == robot
+    # Without a configuration file the grid trains the shipped entries as they are.
+    shipped_grid = _procedural_settings(tmp_path, monkeypatch, ["--algos", "td3", "--robot", robot])
+    assert shipped_grid.conf_folder is None
+    config = resolved(shipped_grid)
+    assert config.saved["batch_size"] == 512
+    assert config.env_kwargs["rays_per_reading"] == 4
+
+
 def test_committed_results_of_a_configs_file_ran_its_configurations():
     from sb3_adc.config.loader import read_yaml_file
 
