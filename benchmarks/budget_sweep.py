@@ -11,7 +11,7 @@ Every checkpoint is scored, deterministically, on the validation layouts (``VALI
 2,000,000-2,000,099, ``--layouts`` of them): a split that neither training (0-999,999) nor the held-out test set
 (1,000,000-1,000,099) uses, so the choices made from this sweep leave the test layouts and course files unseen.
 The runs use tuning seeds (default 0-2), never the reporting seeds 1000-1009. A configuration whose model deploys
-an averaged actor (``actor_average_tau`` of ADC or TD3) is also scored with the actor itself, as
+an averaged actor (``actor_average_tau`` of ADC, TD3 or DDPG) is also scored with the actor itself, as
 ``"{name} (actor itself)"``: both policies of the same runs.
 
 Training is ``sb3-adc benchmark``'s engine (resumable, one process per run); the runs go to
@@ -90,8 +90,8 @@ def score_checkpoint(
 ) -> list[dict[str, Any]]:
     """
     The success rate of one checkpoint on the first ``n_layouts`` validation layouts, one episode each. A model that
-    deploys an averaged actor (``actor_average_tau`` of ADC or TD3) is scored twice: as deployed, and with the actor itself
-    as configuration ``"{config} (actor itself)"``, the same run's two policies.
+    deploys an averaged actor (``actor_average_tau`` of ADC, TD3 or DDPG) is scored twice: as deployed, and with the
+    actor itself as configuration ``"{config} (actor itself)"``, the same run's two policies.
     """
     th.set_num_threads(1)
     settings, entry, model, kwargs = load_for_scoring(run_dir, path=model_path)

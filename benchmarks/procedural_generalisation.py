@@ -27,7 +27,7 @@ evaluation with the best mean return (SB3's ``EvalCallback`` rule, the RL Zoo's 
 5 episodes on training layouts, none of the test sets), the same rule for every algorithm. The runs are the same
 (trained once, found finished); its results go to folders named ``..._best``.
 
-``--actor-itself`` scores runs (ADC or TD3) that deploy an averaged actor (``actor_average_tau``) with the actor
+``--actor-itself`` scores runs (ADC, TD3 or DDPG) that deploy an averaged actor (``actor_average_tau``) with the actor
 itself, the average dropped: the same runs' control, since the average changes nothing that is learned; its results go to
 folders named ``..._actor_itself``.
 

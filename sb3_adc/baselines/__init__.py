@@ -1,7 +1,7 @@
 """
 The baselines of the ADC paper, as SB3 algorithms and policies.
 
-- :class:`SplitRateDDPG`: SB3's DDPG with a separate critic learning rate (the paper's DDPG);
+- :class:`SplitRateDDPG`: SB3's DDPG with a separate critic learning rate (the paper's DDPG) and the averaged actor;
 - :class:`AveragedActorTD3`: SB3's TD3 with the averaged actor ADC can deploy (``actor_average_tau``);
 - :class:`VanillaActorCritic`: online deterministic actor-critic, no replay, no target networks;
 - :class:`DuelingDQNPolicy`: a dueling Q-network policy for SB3's DQN, used with

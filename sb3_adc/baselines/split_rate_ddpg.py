@@ -1,28 +1,35 @@
-"""SB3's DDPG with its own critic learning rate, as the DDPG baseline of the ADC paper."""
+"""SB3's DDPG with its own critic learning rate, as the DDPG baseline of the ADC paper, and the averaged actor ADC can
+deploy."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import torch as th
 from stable_baselines3 import DDPG
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
+from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
-from stable_baselines3.td3.policies import TD3Policy
+from stable_baselines3.td3.policies import CnnPolicy, MultiInputPolicy, TD3Policy
 
 from sb3_adc.adc.policies import refuse_adc_policy
+from sb3_adc.common.actor_average import ActorAverageTD3Policy, TD3WithActorAverage
 from sb3_adc.common.critic_learning_rate import TD3WithCriticLearningRate
 from sb3_adc.common.model_files import CheckedModelFiles
 
 
-class SplitRateDDPG(CheckedModelFiles, TD3WithCriticLearningRate, DDPG):
+class SplitRateDDPG(CheckedModelFiles, TD3WithCriticLearningRate, TD3WithActorAverage, DDPG):
     """
     Deep Deterministic Policy Gradient with separate actor and critic learning rates.
 
     SB3's :class:`~stable_baselines3.DDPG` uses one learning rate for both networks; the ADC paper's DDPG and
-    vanilla actor-critic baselines use an actor rate ``a`` and a critic rate ``c = 2a`` (Tables 1-3). With
-    ``critic_learning_rate=None`` (the default) this class is SB3's DDPG, update for update.
+    vanilla actor-critic baselines use an actor rate ``a`` and a critic rate ``c = 2a`` (Tables 1-3). Its
+    ``MlpPolicy`` also takes ``actor_average_tau``: the deployed policy is then a Polyak average of the actor's
+    iterates, as :class:`~sb3_adc.ADC` and :class:`~sb3_adc.baselines.AveragedActorTD3` can deploy
+    (:mod:`sb3_adc.common.actor_average`; DDPG updates its actor at every gradient step). With
+    ``critic_learning_rate=None`` and no ``actor_average_tau`` (the defaults) this class is SB3's DDPG, update for
+    update.
 
     Unlike SB3's DDPG, it refuses an :class:`~sb3_adc.adc.policies.ADCPolicy` (SB3's ``DDPG.load`` of an ADC
     model file silently builds and trains the ADC policy), and its ``load`` and ``set_parameters`` errors name
@@ -53,6 +60,12 @@ class SplitRateDDPG(CheckedModelFiles, TD3WithCriticLearningRate, DDPG):
     :param device: Device (cpu, cuda, ...) on which the code should be run.
     :param _init_setup_model: Whether or not to build the network at the creation of the instance
     """
+
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
+        "MlpPolicy": ActorAverageTD3Policy,
+        "CnnPolicy": CnnPolicy,
+        "MultiInputPolicy": MultiInputPolicy,
+    }
 
     def __init__(
         self,

@@ -7,8 +7,8 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from sb3_adc.config.allowlists import AllowList
 from sb3_adc.config.errors import HyperparamsError
 
-#: ``--algo`` name -> algorithm class. ``ddpg`` is SB3's DDPG with an optional ``critic_learning_rate``
-#: (:class:`~sb3_adc.baselines.SplitRateDDPG`, identical to SB3's DDPG without it); ``td3`` is SB3's TD3 with an
+#: ``--algo`` name -> algorithm class. ``ddpg`` is SB3's DDPG with an optional ``critic_learning_rate`` and averaged
+#: actor (:class:`~sb3_adc.baselines.SplitRateDDPG`, identical to SB3's DDPG without them); ``td3`` is SB3's TD3 with an
 #: optional averaged actor (:class:`~sb3_adc.baselines.AveragedActorTD3`, ``policy_kwargs`` ``actor_average_tau``,
 #: identical to SB3's TD3 without it). Add your own with
 #: ``ALGORITHMS.add("name", AlgorithmClass)`` (and a ``name.yml`` hyperparameter file).

@@ -1,6 +1,7 @@
 """ADCPolicy's averaged actor (``actor_average_tau``): the averaging rule, that it leaves learning unchanged, which
 predictions use it, and that it survives saving, loading and further training (the last two also for
-AveragedActorTD3, whose policy keeps the same average; its own rule per training call is tested with it)."""
+AveragedActorTD3 and SplitRateDDPG, whose policies keep the same average; their rule per training call is tested
+in tests/baselines/test_averaged_actor_td3.py)."""
 
 import numpy as np
 import pytest
@@ -9,23 +10,24 @@ from stable_baselines3.common.logger import configure
 
 from sb3_adc import ADC
 from sb3_adc.adc.policies import ADCPolicy
-from sb3_adc.baselines import AveragedActorTD3
-from sb3_adc.common.actor_average import check_actor_average_tau
+from sb3_adc.baselines import AveragedActorTD3, SplitRateDDPG
+from sb3_adc.common.actor_average import actor_average_weight, check_actor_average_tau
 
 NET = dict(net_arch=[8], n_intervals=4, value_net_arch=[4])
 #: The networks of each algorithm whose policy keeps the average.
-NETS = {ADC: NET, AveragedActorTD3: dict(net_arch=[8])}
+NETS = {ADC: NET, AveragedActorTD3: dict(net_arch=[8]), SplitRateDDPG: dict(net_arch=[8])}
 
 
 def make(actor_average_tau=0.0, policy_delay=2, seed=3, learning_starts=50, algorithm=ADC, **kwargs):
     net = NETS[algorithm]
     policy_kwargs = {**net, "actor_average_tau": actor_average_tau} if actor_average_tau else dict(net)
+    if algorithm is not SplitRateDDPG:  # DDPG updates its actor at every step
+        kwargs["policy_delay"] = policy_delay
     return algorithm(
         "MlpPolicy",
         "Pendulum-v1",
         learning_starts=learning_starts,
         batch_size=16,
-        policy_delay=policy_delay,
         seed=seed,
         policy_kwargs=policy_kwargs,
         **kwargs,
@@ -85,7 +87,7 @@ def test_the_average_does_not_change_what_is_learned():
     np.testing.assert_array_equal(plain.replay_buffer.actions[:size], averaged.replay_buffer.actions[:size])
 
 
-@pytest.mark.parametrize("algorithm", [ADC, AveragedActorTD3])
+@pytest.mark.parametrize("algorithm", [ADC, AveragedActorTD3, SplitRateDDPG])
 def test_deterministic_predictions_use_the_average_until_it_is_dropped(algorithm):
     model = make(actor_average_tau=0.05, algorithm=algorithm).learn(300)
     observations = np.random.default_rng(0).uniform(-1, 1, size=(5, 3)).astype(np.float32)
@@ -105,7 +107,7 @@ def test_deterministic_predictions_use_the_average_until_it_is_dropped(algorithm
     np.testing.assert_allclose(model.policy.scale_action(deterministic), actor, atol=1e-6)
 
 
-@pytest.mark.parametrize("algorithm", [ADC, AveragedActorTD3])
+@pytest.mark.parametrize("algorithm", [ADC, AveragedActorTD3, SplitRateDDPG])
 def test_a_saved_model_keeps_its_average_and_goes_on_averaging(tmp_path, algorithm):
     model = make(actor_average_tau=0.01, algorithm=algorithm).learn(200)
     model.save(tmp_path / "model.zip")
@@ -120,7 +122,9 @@ def test_a_saved_model_keeps_its_average_and_goes_on_averaging(tmp_path, algorit
     n_updates = loaded._n_updates
     loaded.train(gradient_steps=2, batch_size=16)
     assert loaded._n_updates == n_updates + 2
-    weight = max(0.01, 1 / (loaded._n_updates // 2))
+    # ADC and TD3 (policy_delay 2) updated their actors once, DDPG twice.
+    n_actor_updates, n_new = loaded._n_updates // loaded.policy_delay, 2 // loaded.policy_delay
+    weight = actor_average_weight(0.01, n_actor_updates, n_new)
     assert weight < 1
     expected = (1 - weight) * average + weight * vector(loaded.actor)
     th.testing.assert_close(vector(loaded.policy.actor_average), expected)

@@ -169,8 +169,13 @@ def test_trained_agent_trains_further(cli, train_args, trained_runs, tmp_path):
 @pytest.mark.parametrize(
     ("algo", "agent_of", "env", "messages"),
     [
-        ("adc", "ddpg", "Pendulum-v1", ["must be a model of --algo adc (ADC, policy ADCPolicy)", "the policy TD3Policy"]),
-        ("ddpg", "adc", "Pendulum-v1", ["--algo ddpg (SplitRateDDPG, policy TD3Policy)", "the policy ADCPolicy"]),
+        (
+            "adc",
+            "ddpg",
+            "Pendulum-v1",
+            ["must be a model of --algo adc (ADC, policy ADCPolicy)", "the policy ActorAverageTD3Policy"],
+        ),
+        ("ddpg", "adc", "Pendulum-v1", ["--algo ddpg (SplitRateDDPG, policy ActorAverageTD3Policy)", "the policy ADCPolicy"]),
         ("adc", "adc", "MountainCarContinuous-v0", ["must be a model for the spaces of MountainCarContinuous-v0"]),
     ],
 )
