@@ -13,7 +13,8 @@ Per grid (a folder of ``benchmarks/results/procedural_generalisation/`` with a `
 
 The reference planner (``reference_planner.py``) adds one row per observation, robot and lidar: one
 deterministic policy, so a rate without a CI. For the pairs of grids in ``COMPARISONS`` (one change between
-them, trained on the same seeds), the probability that a run of the first beats a run of the second on each test
+them, trained on the same seeds: a setting, the deployed policy, or the algorithm given the same settings), the
+probability that a run of the first beats a run of the second on each test
 set (rliable, 95% stratified-bootstrap CI): ``comparisons.csv`` and a table in ``summary.md``. Writes
 ``summary.csv`` and ``summary.md`` beside the grids and the figure ``docs/_static/benchmarks/procedural_summary.png``.
 
@@ -51,14 +52,20 @@ HITS = [f"hit_{kind}" for kind in HIT_KINDS]
 #: Of the failed episodes, those that ended against an obstacle and those whose obstacle the lidar did not show in
 #: time (``procedural_generalisation.SIGHTING``); empty for grids scored before the scoring recorded it.
 SIGHTINGS = ["hit_obstacle", "hit_unseen"]
-#: Pairs of grids to compare run against run: (changed, control), the same algorithm, seeds and test sets.
+#: Pairs of grids to compare run against run: (changed, control), one algorithm each, the same seeds and test sets,
+#: and one change between them: a setting or the deployed policy of one algorithm, or the algorithm given the same
+#: settings (ADC against TD3 with the same sensor, returns, budget and deployed policy).
+AVERAGE_ADC = "LidarObstacleCourse-v1_n_step_150k_sectors_average_validation"
+AVERAGE_TD3 = "LidarObstacleCourse-v1_n_step_td3_150k_sectors_average_validation"
+ACTOR_ITSELF = "_actor_itself"
 COMPARISONS = [
     ("LidarObstacleCourse-v1_n_step_150k_sectors_validation", "LidarObstacleCourse-v1_n_step_150k_validation"),
     ("LidarObstacleCourse-v1_n_step_150k_sectors_validation_best", "LidarObstacleCourse-v1_n_step_150k_validation_best"),
-    (
-        "LidarObstacleCourse-v1_n_step_150k_sectors_average_validation",
-        "LidarObstacleCourse-v1_n_step_150k_sectors_average_validation_actor_itself",
-    ),
+    (AVERAGE_ADC, AVERAGE_ADC + ACTOR_ITSELF),
+    (AVERAGE_TD3, AVERAGE_TD3 + ACTOR_ITSELF),
+    (AVERAGE_TD3 + ACTOR_ITSELF, "LidarObstacleCourse-v1_n_step_td3_150k"),
+    (AVERAGE_ADC, AVERAGE_TD3),
+    (AVERAGE_ADC + ACTOR_ITSELF, AVERAGE_TD3 + ACTOR_ITSELF),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
