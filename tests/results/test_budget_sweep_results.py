@@ -138,3 +138,69 @@ def test_every_configuration_overrides_the_frozen_starting_entry(tmp_path, monke
         config = load_hyperparams("td3", env_id, run.conf_file, run.overrides)
         assert config.saved["batch_size"] == start["batch_size"]
         assert config.saved["gamma"] == settings.overrides.get("gamma", start["gamma"])
+
+
+def test_a_checkpoint_is_the_model_of_its_step_whatever_the_budget(tmp_path, monkeypatch):
+    """What a budget sweep rests on: a run's checkpoint at step k is the model any budget of k steps or more trains,
+    so one run gives the whole budget curve, and a longer sweep (actor_average_300k.yml) extends the runs of a
+    shorter one (actor_average_150k.yml). Checked with that configuration (3-step returns, twin critics, averaged
+    actor, epsilon-gated noise, four rays, clearance shaping), tiny networks and the sweep's own grid settings, with
+    the periodic evaluations and checkpoints of a budget of 100 steps against one of 200."""
+    import torch as th
+
+    from sb3_adc.adc import ADC
+    from sb3_adc.experiment.benchmark import RunSpec, run_benchmarks
+    from sb3_adc.experiment.layout import RunLayout
+
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    budget_sweep = importlib.import_module("budget_sweep")
+    (overrides,) = budget_sweep.read_configs(
+        str(ROOT / "benchmarks" / "configs" / "budget_sweep" / "actor_average_300k.yml")
+    ).values()
+    overrides = {
+        **overrides,
+        "learning_starts": 40,
+        "batch_size": 16,
+        "policy_kwargs": overrides["policy_kwargs"].replace("[100, 20]", "[8]").replace("[100]", "[8]").replace("[20]", "[4]"),
+        "env_kwargs": {**overrides["env_kwargs"], "max_episode_steps": 30},
+    }
+    env_id, algo = "sb3_adc/LidarObstacleCourse-v1", "adc"
+    budgets = (100, 200)
+    grids = [
+        budget_sweep.BenchmarkSettings(
+            algos=[algo],
+            env_ids=[env_id],
+            seeds=[3],
+            log_folder=str(tmp_path / f"budget_{budget}"),
+            n_timesteps=budget,
+            overrides=overrides,
+            conf_folder=str(budget_sweep.STARTING_ENTRIES),
+            eval_freq=budget // budget_sweep.N_CHECKPOINTS,
+            eval_episodes=1,
+            final_eval_episodes=1,
+            device="cpu",
+            keep_checkpoints=budget_sweep.N_CHECKPOINTS + 1,
+        )
+        for budget in budgets
+    ]
+    try:
+        results = run_benchmarks(grids, workers=1)
+    finally:
+        sys.modules.pop("budget_sweep", None)
+        sys.modules.pop("procedural_generalisation", None)
+    assert not any(result.failures for result in results)
+    checkpoints = [
+        {
+            point.timesteps: point.model
+            for point in RunLayout(RunSpec(algo, env_id, 3).run_dir(grid.log_folder), env_id).checkpoints()
+        }
+        for grid in grids
+    ]
+    shared = sorted(set(checkpoints[0]) & set(checkpoints[1]))
+    assert shared == [20, 40, 60, 80, 100]
+    for step in shared:
+        short, long = (ADC.load(points[step], device="cpu").policy.state_dict() for points in checkpoints)
+        assert any(name.startswith("actor_average.") for name in short)
+        assert set(short) == set(long)
+        for name, tensor in short.items():
+            assert th.equal(tensor, long[name]), (step, name)
