@@ -2,13 +2,8 @@
 
 from __future__ import annotations
 
-from typing import ClassVar
-
-from stable_baselines3.common.policies import BasePolicy
-from stable_baselines3.td3.policies import CnnPolicy, MultiInputPolicy
-
 from sb3_adc.adc.policies import refuse_adc_policy
-from sb3_adc.common.actor_average import ActorAverageTD3Policy, TD3WithActorAverage
+from sb3_adc.common.actor_average import TD3WithActorAverage
 from sb3_adc.common.model_files import CheckedModelFiles
 
 
@@ -23,12 +18,6 @@ class AveragedActorTD3(CheckedModelFiles, TD3WithActorAverage):
     silently trains the ADC policy with TD3's update), and its ``load`` and ``set_parameters`` errors name the file
     (see :meth:`sb3_adc.ADC.load`). The constructor's parameters are SB3's TD3's.
     """
-
-    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
-        "MlpPolicy": ActorAverageTD3Policy,
-        "CnnPolicy": CnnPolicy,
-        "MultiInputPolicy": MultiInputPolicy,
-    }
 
     def _setup_model(self) -> None:
         refuse_adc_policy(self.policy_class, "TD3")

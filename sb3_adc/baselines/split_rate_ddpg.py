@@ -3,18 +3,17 @@ deploy."""
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any
 
 import torch as th
 from stable_baselines3 import DDPG
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
-from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
-from stable_baselines3.td3.policies import CnnPolicy, MultiInputPolicy, TD3Policy
+from stable_baselines3.td3.policies import TD3Policy
 
 from sb3_adc.adc.policies import refuse_adc_policy
-from sb3_adc.common.actor_average import ActorAverageTD3Policy, TD3WithActorAverage
+from sb3_adc.common.actor_average import TD3WithActorAverage
 from sb3_adc.common.critic_learning_rate import TD3WithCriticLearningRate
 from sb3_adc.common.model_files import CheckedModelFiles
 
@@ -60,12 +59,6 @@ class SplitRateDDPG(CheckedModelFiles, TD3WithCriticLearningRate, TD3WithActorAv
     :param device: Device (cpu, cuda, ...) on which the code should be run.
     :param _init_setup_model: Whether or not to build the network at the creation of the instance
     """
-
-    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
-        "MlpPolicy": ActorAverageTD3Policy,
-        "CnnPolicy": CnnPolicy,
-        "MultiInputPolicy": MultiInputPolicy,
-    }
 
     def __init__(
         self,

@@ -1,5 +1,5 @@
 """
-An averaged actor for SB3's TD3 family (ADC, TD3): the deployed policy as a Polyak average of the actor's iterates.
+An averaged actor for SB3's TD3 family (ADC, TD3, DDPG): the deployed policy as a Polyak average of the actor's iterates.
 
 Not in the ADC paper. A deterministic actor trained with the policy gradient can swing between checkpoints: on the
 lidar obstacle course a run's validation success moved from 0.96 to 0.56 and back within 30,000 steps (docs, critic
@@ -13,14 +13,15 @@ its actor updates (:meth:`ActorAverageTD3Policy.update_actor_average`): ADC afte
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import torch as th
 from gymnasium import spaces
+from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, FlattenExtractor
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from stable_baselines3.common.utils import polyak_update
-from stable_baselines3.td3.policies import Actor, TD3Policy
+from stable_baselines3.td3.policies import Actor, CnnPolicy, MultiInputPolicy, TD3Policy
 from stable_baselines3.td3.td3 import TD3
 from torch import nn
 
@@ -180,8 +181,15 @@ class TD3WithActorAverage(TD3):
     of the call, with the weight of the actor updates the call made (:func:`actor_average_weight`). With one
     gradient step per call (``train_freq=1, gradient_steps=1``, the lidar settings) this is the average of every
     actor iterate, the rule ADC follows. Policies without an average (``actor_average_tau=0``, or SB3's
-    ``TD3Policy`` of a model file saved by SB3) train as SB3's TD3, update for update.
+    ``TD3Policy`` of a model file saved by SB3) train as SB3's TD3, update for update. Its ``MlpPolicy`` is
+    :class:`ActorAverageTD3Policy`.
     """
+
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
+        "MlpPolicy": ActorAverageTD3Policy,
+        "CnnPolicy": CnnPolicy,
+        "MultiInputPolicy": MultiInputPolicy,
+    }
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         n_before = self._n_updates // self.policy_delay
