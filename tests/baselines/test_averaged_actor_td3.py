@@ -6,11 +6,11 @@ tests/adc/test_model_files.py), and the ``td3`` name's class."""
 import numpy as np
 import pytest
 import torch as th
-from stable_baselines3 import TD3
+from stable_baselines3 import DDPG, TD3
 from stable_baselines3.common.logger import configure
 from stable_baselines3.td3.policies import TD3Policy
 
-from sb3_adc.baselines import AveragedActorTD3
+from sb3_adc.baselines import AveragedActorTD3, SplitRateDDPG
 from sb3_adc.common.actor_average import ActorAverageTD3Policy, actor_average_weight
 from sb3_adc.config.algorithms import get_algorithm
 
@@ -79,6 +79,17 @@ def test_each_call_that_updates_the_actor_moves_the_average_by_its_updates(tau, 
         th.testing.assert_close(vector(model.policy.actor_average), (1 - weight) * average + weight * vector(model.actor))
     assert moved > 0
     assert not th.allclose(vector(model.policy.actor_average), vector(model.actor))
+
+
+@pytest.mark.parametrize("gradient_steps", [1, 3])
+def test_split_rate_ddpg_with_an_averaged_actor_learns_what_sb3_ddpg_learns(gradient_steps):
+    """The average is only deployed: the actor, critic, targets and the actions taken are SB3's DDPG's."""
+    kwargs = {"learning_starts": 50, "batch_size": 16, "buffer_size": 1000, "seed": 3}
+    kwargs |= {"train_freq": gradient_steps, "gradient_steps": gradient_steps}
+    theirs = DDPG("MlpPolicy", "Pendulum-v1", policy_kwargs=NET, **kwargs).learn(150)
+    ours = SplitRateDDPG("MlpPolicy", "Pendulum-v1", policy_kwargs={**NET, "actor_average_tau": 0.05}, **kwargs)
+    assert_same_learning(theirs, ours.learn(150))
+    assert not th.allclose(vector(ours.policy.actor_average), vector(ours.actor))
 
 
 def test_the_weight_of_one_update_is_max_tau_and_one_over_n_and_of_several_their_compound():

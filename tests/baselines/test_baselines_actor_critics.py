@@ -1,5 +1,5 @@
-"""SplitRateDDPG (DDPG with a critic learning rate and an optional averaged actor) and VanillaActorCritic (no replay, no
-target networks)."""
+"""SplitRateDDPG (DDPG with a critic learning rate; its averaged actor is tested with TD3's in
+tests/baselines/test_averaged_actor_td3.py) and VanillaActorCritic (no replay, no target networks)."""
 
 import gymnasium as gym
 import numpy as np
@@ -23,25 +23,6 @@ def test_split_rate_ddpg_without_critic_rate_is_sb3_ddpg_update_for_update():
     theirs = DDPG("MlpPolicy", "Pendulum-v1", **kwargs).learn(150)
     for mine, reference in zip(ours.policy.parameters(), theirs.policy.parameters(), strict=True):
         th.testing.assert_close(mine, reference, rtol=0, atol=0)
-
-
-@pytest.mark.parametrize("gradient_steps", [1, 3])
-def test_split_rate_ddpg_with_an_averaged_actor_learns_what_sb3_ddpg_learns(gradient_steps):
-    """The average is only deployed: the actor, critic, targets and the actions taken are SB3's DDPG's, and the
-    average moves once per training call by the actor updates of the call (one per gradient step for DDPG)."""
-    kwargs = {"learning_starts": 50, "batch_size": 16, "buffer_size": 1000, "seed": 3}
-    kwargs |= {"train_freq": gradient_steps, "gradient_steps": gradient_steps}
-    theirs = DDPG("MlpPolicy", "Pendulum-v1", policy_kwargs=TINY, **kwargs).learn(150)
-    ours = SplitRateDDPG("MlpPolicy", "Pendulum-v1", policy_kwargs={**TINY, "actor_average_tau": 0.05}, **kwargs)
-    ours.learn(150)
-    state, reference = ours.policy.state_dict(), theirs.policy.state_dict()
-    assert set(state) - set(reference) == {name for name in state if name.startswith("actor_average.")}
-    for name, tensor in reference.items():
-        assert th.equal(tensor, state[name]), name
-    size = theirs.replay_buffer.size()
-    np.testing.assert_array_equal(ours.replay_buffer.actions[:size], theirs.replay_buffer.actions[:size])
-    average = th.nn.utils.parameters_to_vector(ours.policy.actor_average.parameters())
-    assert not th.allclose(average, th.nn.utils.parameters_to_vector(ours.actor.parameters()))
 
 
 def test_split_rate_ddpg_uses_both_rates_and_keeps_them_on_load(tmp_path):

@@ -122,37 +122,6 @@ def test_configs_file_is_checked_before_anything_runs(tmp_path, monkeypatch, cap
     sys.modules.pop("procedural_generalisation", None)
 
 
-def test_algos_trains_a_subset_of_a_configs_file_with_its_overrides(tmp_path, monkeypatch):
-    import importlib
-    import sys
-
-    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
-    procedural_generalisation = importlib.import_module("procedural_generalisation")
-    monkeypatch.setattr(procedural_generalisation, "RUNS_DIR", tmp_path / "runs")
-    monkeypatch.setattr(procedural_generalisation, "RESULTS_DIR", tmp_path / "results")
-    trained = []
-
-    class Stop(Exception):
-        pass
-
-    def run_benchmark(settings, **_):
-        trained.append(settings)
-        raise Stop
-
-    monkeypatch.setattr(procedural_generalisation, "run_benchmark", run_benchmark)
-    path = tmp_path / "configs.yml"
-    path.write_text("adc: {gamma: 0.95}\nddpg: {gamma: 0.97}\ntd3: {gamma: 0.96, n_timesteps: 1000}\n")
-    monkeypatch.setattr(sys, "argv", ["procedural_generalisation.py", "--configs", str(path), "--algos", "td3"])
-    with pytest.raises(Stop):
-        procedural_generalisation.main()
-    sys.modules.pop("procedural_generalisation", None)
-    (settings,) = trained
-    assert settings.algos == ["td3"]
-    assert settings.n_timesteps == 1000
-    assert settings.overrides["gamma"] == 0.96
-    assert settings.log_folder == str(tmp_path / "runs" / "LidarObstacleCourse-v1_configs" / "td3")
-
-
 def _procedural_settings(tmp_path, monkeypatch, argv):
     """The grid settings ``procedural_generalisation.py`` trains with for ``argv``, stopped before any training."""
     import importlib
@@ -179,6 +148,16 @@ def _procedural_settings(tmp_path, monkeypatch, argv):
     finally:
         sys.modules.pop("procedural_generalisation", None)
     return trained[0]
+
+
+def test_algos_trains_a_subset_of_a_configs_file_with_its_overrides(tmp_path, monkeypatch):
+    path = tmp_path / "configs.yml"
+    path.write_text("adc: {gamma: 0.95}\nddpg: {gamma: 0.97}\ntd3: {gamma: 0.96, n_timesteps: 1000}\n")
+    settings = _procedural_settings(tmp_path, monkeypatch, ["--configs", str(path), "--algos", "td3"])
+    assert settings.algos == ["td3"]
+    assert settings.n_timesteps == 1000
+    assert settings.overrides["gamma"] == 0.96
+    assert settings.log_folder == str(tmp_path / "runs" / "LidarObstacleCourse-v1_configs" / "td3")
 
 
 @pytest.mark.parametrize("robot", ["kinematic", "wheeled"])
