@@ -18,6 +18,7 @@ from stable_baselines3.common.save_util import load_from_pkl
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_adc.common.atomic import atomic_path, write_atomically
+from sb3_adc.experiment.continuation import Continuation
 from sb3_adc.experiment.divergence import check_finite_weights
 from sb3_adc.experiment.evaluation import success_rate
 from sb3_adc.experiment.layout import CHECKPOINT_PREFIX, Checkpoint, DamagedFileError, RunLayout
@@ -234,45 +235,60 @@ class CheckpointSaver(CheckpointCallback):
     every ``every`` timesteps rather than every ``save_freq`` calls (so a resumed run saves at the timesteps an
     uninterrupted one would), each file atomically, and keeping the ``keep`` latest checkpoints. Give it after the
     evaluation callback: a checkpoint then includes the evaluation of its timestep. A model whose weights are not
-    finite is never saved.
+    finite is never saved. Each checkpoint also holds, where one is exact, the
+    :class:`~sb3_adc.experiment.continuation.Continuation` that makes a resumed run the same run.
 
     :param layout: The run's paths
     :param every: Timesteps between checkpoints
     :param keep: Number of checkpoints kept (older ones are deleted)
+    :param eval_env: The run's evaluation environments, whose episodes the continuation keeps too (``None``: none)
     """
 
-    def __init__(self, layout: RunLayout, every: int, keep: int):
+    def __init__(self, layout: RunLayout, every: int, keep: int, eval_env: VecEnv | None = None):
         super().__init__(every, layout.run_dir, CHECKPOINT_PREFIX, save_replay_buffer=True, save_vecnormalize=True)
         self.layout = layout
         self.keep = keep
         self.schedule = TimestepSchedule(every)
+        self.eval_env = eval_env
 
     def _init_callback(self) -> None:
         self.schedule.start(self.model.num_timesteps)
 
     def _on_step(self) -> bool:
         if self.schedule.due(self.num_timesteps):
-            self.save()
+            self.save(step_locals=self.locals)
         return True
 
-    def save(self) -> Checkpoint:
+    def save(self, step_locals: dict[str, Any] | None = None, exact: bool = True) -> Checkpoint:
         """
-        Save a checkpoint at the current timestep now (also used when training is interrupted).
+        Save a checkpoint at the current timestep now (also used at the end of training and when training is
+        interrupted).
 
+        :param step_locals: ``collect_rollouts``' locals when saving inside a step (the periodic checkpoints),
+            ``None`` between steps
+        :param exact: Whether the run is at a point it can be continued exactly from (``False``: interrupted
+            anywhere, by Ctrl-C; the checkpoint then holds no continuation)
         :raises NonFiniteWeights: if the model's weights hold NaN or inf (nothing is written)
         """
         check_finite_weights(self.model)
         self.num_timesteps = self.model.num_timesteps
         checkpoint = self.layout.checkpoint(self.num_timesteps)
-        # Replay buffer and statistics first: a checkpoint counts once its model zip exists.
+        # Before the model: a continuation left by an earlier checkpoint of this timestep is not this one's.
+        if os.path.exists(checkpoint.continuation):
+            os.remove(checkpoint.continuation)
+        # Replay buffer, statistics and continuation first: a checkpoint counts once its model zip exists.
         if hasattr(self.model, "save_replay_buffer") and getattr(self.model, "replay_buffer", None) is not None:
-            with atomic_path(self._checkpoint_path("replay_buffer_", extension="pkl")) as temporary:
+            with atomic_path(checkpoint.replay_buffer) as temporary:
                 self.model.save_replay_buffer(temporary)
         vec_normalize = self.model.get_vec_normalize_env()
         if vec_normalize is not None:
-            with atomic_path(self._checkpoint_path("vecnormalize_", extension="pkl")) as temporary:
+            with atomic_path(checkpoint.vecnormalize) as temporary:
                 vec_normalize.save(temporary)
-        with atomic_path(self._checkpoint_path(extension="zip")) as temporary:
+        continuation = Continuation.capture(self.model, self.eval_env, step_locals) if exact else None
+        if continuation is not None:
+            with atomic_path(checkpoint.continuation) as temporary:
+                continuation.save(temporary)
+        with atomic_path(checkpoint.model) as temporary:
             self.model.save(temporary)
         self._prune()
         return checkpoint
@@ -285,7 +301,8 @@ class CheckpointSaver(CheckpointCallback):
 def checkpoint_damage(checkpoint: Checkpoint) -> str | None:
     """
     Why a checkpoint cannot be resumed from, or ``None`` if it can: its model zip must open with intact
-    members (CRC checked) and its replay buffer and ``VecNormalize`` statistics, where present, must unpickle.
+    members (CRC checked) and its replay buffer, ``VecNormalize`` statistics and continuation, where present, must
+    unpickle.
 
     :param checkpoint: The checkpoint
     """
@@ -301,7 +318,7 @@ def checkpoint_damage(checkpoint: Checkpoint) -> str | None:
         return f"{os.path.basename(checkpoint.model)}: member {broken} is corrupted"
     if "data" not in names:
         return f"{os.path.basename(checkpoint.model)} holds no SB3 model (no `data` member)"
-    for path in (checkpoint.replay_buffer, checkpoint.vecnormalize):
+    for path in (checkpoint.replay_buffer, checkpoint.vecnormalize, checkpoint.continuation):
         if os.path.isfile(path):
             try:
                 load_from_pkl(path)

@@ -9,6 +9,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecFrameStack, VecNormalize
 
 from sb3_adc.config import ExperimentConfig
+from sb3_adc.experiment.continuation import EpisodeRecorder
 from sb3_adc.experiment.divergence import FiniteCheck
 
 #: ``info`` key (and monitor CSV column) with the number of steps the environment has taken during training.
@@ -36,6 +37,14 @@ class TotalStepsInfo(gym.Wrapper[Any, Any, Any, Any]):
         info[TOTAL_STEPS_KEY] = self.total_steps
         return observation, reward, terminated, truncated, info
 
+    def set_total_steps(self, total_steps: int) -> None:
+        """
+        Set the count (a resumed run, after replaying the episode in progress, which counted its steps again).
+
+        :param total_steps: Steps taken since training started
+        """
+        self.total_steps = int(total_steps)
+
 
 def make_run_envs(
     config: ExperimentConfig,
@@ -50,9 +59,11 @@ def make_run_envs(
 ) -> VecEnv:
     """
     SB3's ``make_vec_env`` for a run: ``n_envs`` environments of ``config`` (``env_kwargs`` and ``env_wrapper``
-    applied outside the ``Monitor``), seeded ``seed, seed + 1, ...``; :func:`wrap_vec_env` then applies
-    ``normalize`` and ``frame_stack``. With a ``monitor_dir``, each environment counts its steps across episodes
-    (:class:`TotalStepsInfo`, continuing from ``steps_offset`` on resume) and its ``Monitor`` records that count.
+    applied outside the ``Monitor``, and outside them all an
+    :class:`~sb3_adc.experiment.continuation.EpisodeRecorder`, which checkpoints keep for an exact resume),
+    seeded ``seed, seed + 1, ...``; :func:`wrap_vec_env` then applies ``normalize`` and ``frame_stack``. With a
+    ``monitor_dir``, each environment counts its steps across episodes (:class:`TotalStepsInfo`, continuing from
+    ``steps_offset`` on resume) and its ``Monitor`` records that count.
 
     :param config: The resolved hyperparameters
     :param n_envs: Number of environments
@@ -73,13 +84,16 @@ def make_run_envs(
         env: gym.Env = gym.make(config.env_id, **make_kwargs)
         return TotalStepsInfo(env, steps_offset) if logged else env
 
+    def wrap(env: gym.Env) -> gym.Env:
+        return EpisodeRecorder(config.wrap_env(env))
+
     return make_vec_env(
         make_env,
         n_envs,
         seed=seed,
         env_kwargs=kwargs,
         monitor_dir=monitor_dir,
-        wrapper_class=config.wrap_env,
+        wrapper_class=wrap,
         vec_env_cls=SubprocVecEnv if vec_env == "subproc" else DummyVecEnv,
         monitor_kwargs={"info_keywords": (TOTAL_STEPS_KEY,), "override_existing": not append_monitor} if logged else None,
     )

@@ -11,6 +11,8 @@ id with ``/`` replaced by ``-``, ``run_id`` counts from 1), holding::
     rl_model_{t}_steps.zip                  checkpoint: model at timestep t
     rl_model_replay_buffer_{t}_steps.pkl    checkpoint: replay buffer
     rl_model_vecnormalize_{t}_steps.pkl     checkpoint: VecNormalize statistics (with `normalize`)
+    rl_model_continuation_{t}_steps.pkl     checkpoint: what makes the resumed run the same run (random
+                                            generators, episodes in progress, the step in progress)
     {env_name}/config.yml                   the resolved hyperparameters
     {env_name}/args.yml                     the run settings (algorithm, seed, budget, evaluation ...)
     {env_name}/vecnormalize.pkl             final VecNormalize statistics (with `normalize`)
@@ -115,16 +117,24 @@ class Checkpoint:
     :param model: The model zip
     :param replay_buffer: The replay buffer pickle (off-policy algorithms)
     :param vecnormalize: The VecNormalize statistics pickle (runs with ``normalize``)
+    :param continuation: What an exact resume needs (:mod:`sb3_adc.experiment.continuation`; absent where none
+        is exact)
     """
 
     timesteps: int
     model: str
     replay_buffer: str
     vecnormalize: str
+    continuation: str
+
+    @property
+    def files(self) -> tuple[str, ...]:
+        """All the checkpoint's paths (present or not), the model zip first."""
+        return (self.model, self.replay_buffer, self.vecnormalize, self.continuation)
 
     def remove(self) -> None:
         """Delete the checkpoint's files that exist."""
-        for path in (self.model, self.replay_buffer, self.vecnormalize):
+        for path in self.files:
             if os.path.exists(path):
                 os.remove(path)
 
@@ -197,7 +207,13 @@ class RunLayout:
         def path(kind: str, extension: str) -> str:
             return os.path.join(self.run_dir, f"{CHECKPOINT_PREFIX}_{kind}{timesteps}_steps.{extension}")
 
-        return Checkpoint(timesteps, path("", "zip"), path("replay_buffer_", "pkl"), path("vecnormalize_", "pkl"))
+        return Checkpoint(
+            timesteps,
+            path("", "zip"),
+            path("replay_buffer_", "pkl"),
+            path("vecnormalize_", "pkl"),
+            path("continuation_", "pkl"),
+        )
 
     def checkpoints(self) -> list[Checkpoint]:
         """The checkpoints present, oldest first."""

@@ -7,7 +7,9 @@ hyperparameters, creates the log folder, the callbacks, the environments and the
 
 - hyperparameters resolved by :mod:`sb3_adc.config` (validated, nothing ``eval``'d or imported by name);
 - resume: the Zoo's "continue from a zip" (``-i``) also loads a checkpoint of the run itself, with its replay
-  buffer, ``VecNormalize`` statistics, timestep count, exploration-noise state and the evaluations so far;
+  buffer, ``VecNormalize`` statistics, timestep count, exploration-noise state and the evaluations so far, and
+  its continuation (random generators, episodes in progress, the step in progress:
+  :mod:`sb3_adc.experiment.continuation`), so that the resumed run is the run it continues;
 - checkpoints and evaluations written atomically, on the timestep count, so a resumed run evaluates and saves at
   the timesteps an uninterrupted one would (:mod:`sb3_adc.experiment.callbacks`);
 - a checkpoint on Ctrl-C, an error naming the first NaN or inf, and a final evaluation of its own seeds.
@@ -33,6 +35,7 @@ from rl_zoo3.utils import ALGOS
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import configure
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
 from tqdm import TqdmExperimentalWarning
 
@@ -40,6 +43,7 @@ from sb3_adc.common.atomic import atomic_path, write_atomically
 from sb3_adc.common.model_files import loading_model, model_file_errors
 from sb3_adc.config import ALGORITHMS, ExperimentConfig
 from sb3_adc.experiment.callbacks import CheckpointSaver, EvaluationHistory, PeriodicEvalCallback
+from sb3_adc.experiment.continuation import Continuation
 from sb3_adc.experiment.divergence import NonFiniteValue, NonFiniteWeights, TrainingDiverged, check_finite_weights
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
 from sb3_adc.experiment.evaluation import FinalEvaluation, evaluate_final
@@ -125,6 +129,7 @@ class RunManager(ExperimentManager):
         self.saver = CheckpointSaver(self.layout, max(self.save_freq, 1), settings.keep_checkpoints)
         self.train_env: VecEnv | None = None
         self.eval_env: VecEnv | None = None
+        self.continuation: Continuation | None = None
 
     # --- hyperparameters: resolved by sb3_adc.config, so the Zoo receives Python objects ---
 
@@ -187,6 +192,7 @@ class RunManager(ExperimentManager):
                 )
             )
         if self.save_freq > 0:
+            self.saver.eval_env = self.eval_env
             own.append(self.saver)
         self.callbacks = [*own, *self.callbacks, *self.extra_callbacks]
 
@@ -220,7 +226,8 @@ class RunManager(ExperimentManager):
 
     def _load_pretrained_agent(self, hyperparams: dict[str, Any], env: VecEnv) -> BaseAlgorithm:
         """
-        Resume from the run's checkpoint (the model with its replay buffer, on a new random stream), or continue
+        Resume from the run's checkpoint (the model with its replay buffer, and its continuation, restored in
+        :meth:`learn`; a checkpoint without one goes on from a new random stream), or continue
         training a saved model (``-i``) as the Zoo does: its policy and weights, the run's other hyperparameters,
         the replay buffer saved with it (the Zoo's ``replay_buffer.pkl``, or a checkpoint's own), and a timestep
         count starting at 0, so the run trains ``n_timesteps`` more.
@@ -234,8 +241,15 @@ class RunManager(ExperimentManager):
             model.verbose = self.verbose
             if os.path.isfile(self.checkpoint.replay_buffer) and hasattr(model, "load_replay_buffer"):
                 model.load_replay_buffer(self.checkpoint.replay_buffer)
-            # A new random stream: the resumed part does not replay the first part's draws.
-            model.set_random_seed(self.seed + self.checkpoint.timesteps)
+            if os.path.isfile(self.checkpoint.continuation):
+                self.continuation = Continuation.load(self.checkpoint.continuation)
+            if self.continuation is None:
+                # A new random stream: the resumed part does not replay the first part's draws.
+                print(
+                    f"The checkpoint at timestep {self.checkpoint.timesteps} has no continuation (saved on Ctrl-C, "
+                    "or by an older version): the run goes on from a new random stream."
+                )
+                model.set_random_seed(self.seed + self.checkpoint.timesteps)
             return model
         print(f"Continuing the training of {self.trained_agent}")
         with model_file_errors(self.trained_agent, algorithm_class.__name__), loading_model():
@@ -265,6 +279,8 @@ class RunManager(ExperimentManager):
             # SB3's default logger makes a new, empty ``SB3-<date>`` folder in the system's temporary directory for
             # every model without TensorBoard logs; the run's own folder serves instead (the same output formats).
             model.set_logger(configure(self.save_path, ["stdout"] if model.verbose >= 1 else []))
+        if self.continuation is not None:
+            self._continue(model)
         try:
             with warnings.catch_warnings():
                 # SB3's progress bar uses tqdm's rich front-end, which warns that it is experimental.
@@ -279,7 +295,7 @@ class RunManager(ExperimentManager):
             if self.saver.model is None:
                 self.saver.init_callback(model)
             try:
-                saved = self.saver.save()
+                saved = self.saver.save(exact=False)
             except NonFiniteWeights as error:
                 raise self._diverged(model, error) from None
             print(f"\nInterrupted: checkpoint at timestep {saved.timesteps} saved.")
@@ -345,6 +361,18 @@ class RunManager(ExperimentManager):
         return self.evaluate(model)
 
     # --- helpers ---
+
+    def _continue(self, model: BaseAlgorithm) -> None:
+        """Restore the checkpoint's continuation: the environments where the run left them, the random generators
+        as they were, the step in progress stored and trained on."""
+        assert self.continuation is not None
+        assert self.checkpoint is not None
+        assert self.train_env is not None
+        assert isinstance(model, OffPolicyAlgorithm), "only off-policy checkpoints hold a continuation"
+        self.continuation.restore(model, self.eval_env, max(self.n_timesteps - model.num_timesteps, 0))
+        if self.train_env.has_attr("set_total_steps"):
+            # The replay counted the steps of the episodes in progress again.
+            self.train_env.env_method("set_total_steps", self.checkpoint.timesteps // self.experiment.n_envs)
 
     def _close(self) -> None:
         if self.train_env is not None:

@@ -162,7 +162,7 @@ def _latest_checkpoint(layout: RunLayout) -> Checkpoint | None:
         if damage is None:
             return checkpoint
         damaged = True
-        for path in (checkpoint.model, checkpoint.replay_buffer, checkpoint.vecnormalize):
+        for path in checkpoint.files:
             if os.path.exists(path):
                 os.replace(path, path + ".damaged")
         print(f"The checkpoint at timestep {checkpoint.timesteps} is damaged ({damage}); its files are renamed *.damaged.")

@@ -1,5 +1,6 @@
 """Fault injection: damage the files of an interrupted run on disk, then resume it; and crashes while writing."""
 
+import os
 import re
 import shutil
 import warnings
@@ -100,6 +101,8 @@ def test_the_interrupted_run_is_intact(interrupted):
     assert all(checkpoint_damage(checkpoint) is None for checkpoint in layout.checkpoints())
     assert evaluation_steps(interrupted) == [100, 200]
     assert not list(interrupted.glob("*.partial*"))
+    # The periodic checkpoints can be continued exactly; the one of Ctrl-C, taken wherever it fell, cannot.
+    assert [os.path.isfile(checkpoint.continuation) for checkpoint in layout.checkpoints()] == [True, True, False]
 
 
 @pytest.mark.parametrize(
@@ -123,6 +126,17 @@ def test_resume_falls_back_to_the_newest_intact_checkpoint(run_dir, capsys, dama
     assert evaluation_steps(run_dir) == [100, 200, 300]
     episodes = pd.read_csv(run_dir / "0.monitor.csv", skiprows=1)
     assert list(episodes["total_steps"]) == [50, 100, 150, 200, 250, 300]
+
+
+def test_a_damaged_continuation_makes_its_checkpoint_damaged(run_dir, capsys):
+    RunLayout(str(run_dir), "Pendulum-v1").checkpoint(250).remove()
+    truncate(run_dir / "rl_model_continuation_200_steps.pkl")
+    result = resume(str(run_dir))
+    out = capsys.readouterr().out
+    assert "The checkpoint at timestep 200 is damaged (rl_model_continuation_200_steps.pkl does not unpickle" in out
+    assert result.resumed_from == 100
+    assert (run_dir / "rl_model_continuation_200_steps.pkl.damaged").is_file()
+    assert (run_dir / "rl_model_200_steps.zip.damaged").is_file()
 
 
 def test_a_corrupted_member_of_a_checkpoint_zip_is_found(run_dir):
