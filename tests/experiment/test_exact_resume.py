@@ -177,6 +177,16 @@ def test_a_run_resumed_after_a_crash_is_the_uninterrupted_run(uninterrupted, tmp
     assert_same_run(expected, run_dir, env_id)
 
 
+def test_environments_in_worker_processes_resume_as_well(uninterrupted, tmp_path):
+    # The records and replays go through SubprocVecEnv's pipes; the run is the one-process run of the same seed.
+    expected = uninterrupted("td3-noisy-lidar-2-envs")
+    env_id = CASES["td3-noisy-lidar-2-envs"][1]
+    run_dir = train(settings(tmp_path, "td3-noisy-lidar-2-envs", "logs", vec_env="subproc")).run_dir
+    crash_after(run_dir, env_id, 200)
+    assert resume(run_dir).resumed_from == 200
+    assert_same_run(expected, run_dir, env_id)
+
+
 @pytest.mark.parametrize(
     "budget",
     [
