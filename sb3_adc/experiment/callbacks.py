@@ -229,6 +229,19 @@ class PeriodicEvalCallback(EvalCallback):
         return True
 
 
+class StopRequested(Exception):
+    """
+    Raised by :class:`CheckpointSaver` at the end of a step's callbacks when a stop was requested (Ctrl-C), once
+    the checkpoint of that step is saved.
+
+    :param timesteps: The checkpoint's timestep
+    """
+
+    def __init__(self, timesteps: int):
+        super().__init__(f"stopped at timestep {timesteps}")
+        self.timesteps = timesteps
+
+
 class CheckpointSaver(CheckpointCallback):
     """
     SB3's ``CheckpointCallback`` with its file names (model, replay buffer and ``VecNormalize`` statistics), saving
@@ -238,25 +251,33 @@ class CheckpointSaver(CheckpointCallback):
     finite is never saved. Each checkpoint also holds, where one is exact, the
     :class:`~sb3_adc.experiment.continuation.Continuation` that makes a resumed run the same run.
 
+    Setting :attr:`stop_requested` (the engine's Ctrl-C handler does) makes the next step save a checkpoint and
+    raise :class:`StopRequested`: a stop at a point a resume continues exactly.
+
     :param layout: The run's paths
-    :param every: Timesteps between checkpoints
+    :param every: Timesteps between checkpoints (0: none but those of a requested stop)
     :param keep: Number of checkpoints kept (older ones are deleted)
     :param eval_env: The run's evaluation environments, whose episodes the continuation keeps too (``None``: none)
     """
 
     def __init__(self, layout: RunLayout, every: int, keep: int, eval_env: VecEnv | None = None):
-        super().__init__(every, layout.run_dir, CHECKPOINT_PREFIX, save_replay_buffer=True, save_vecnormalize=True)
+        super().__init__(max(every, 1), layout.run_dir, CHECKPOINT_PREFIX, save_replay_buffer=True, save_vecnormalize=True)
         self.layout = layout
         self.keep = keep
-        self.schedule = TimestepSchedule(every)
+        self.periodic = every > 0
+        self.schedule = TimestepSchedule(max(every, 1))
         self.eval_env = eval_env
+        self.stop_requested = False
 
     def _init_callback(self) -> None:
         self.schedule.start(self.model.num_timesteps)
 
     def _on_step(self) -> bool:
-        if self.schedule.due(self.num_timesteps):
-            self.save(step_locals=self.locals)
+        due = self.periodic and self.schedule.due(self.num_timesteps)
+        if due or self.stop_requested:
+            checkpoint = self.save(step_locals=self.locals)
+            if self.stop_requested:
+                raise StopRequested(checkpoint.timesteps)
         return True
 
     def save(self, step_locals: dict[str, Any] | None = None, exact: bool = True) -> Checkpoint:

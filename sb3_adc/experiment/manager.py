@@ -23,9 +23,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import signal
+import threading
 import warnings
 from collections import OrderedDict
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any
 
 import yaml
@@ -42,7 +45,7 @@ from tqdm import TqdmExperimentalWarning
 from sb3_adc.common.atomic import atomic_path, write_atomically
 from sb3_adc.common.model_files import loading_model, model_file_errors
 from sb3_adc.config import ALGORITHMS, ExperimentConfig
-from sb3_adc.experiment.callbacks import CheckpointSaver, EvaluationHistory, PeriodicEvalCallback
+from sb3_adc.experiment.callbacks import CheckpointSaver, EvaluationHistory, PeriodicEvalCallback, StopRequested
 from sb3_adc.experiment.continuation import Continuation
 from sb3_adc.experiment.divergence import NonFiniteValue, NonFiniteWeights, TrainingDiverged, check_finite_weights
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
@@ -126,7 +129,7 @@ class RunManager(ExperimentManager):
         self.params_path = self.layout.params_dir
         self.tensorboard_log = settings.tensorboard_folder()
         self.continue_training = bool(self.trained_agent)
-        self.saver = CheckpointSaver(self.layout, max(self.save_freq, 1), settings.keep_checkpoints)
+        self.saver = CheckpointSaver(self.layout, max(self.save_freq, 0), settings.keep_checkpoints)
         self.train_env: VecEnv | None = None
         self.eval_env: VecEnv | None = None
         self.continuation: Continuation | None = None
@@ -191,9 +194,9 @@ class RunManager(ExperimentManager):
                     eval_seed=self.seed + EVAL_SEED_OFFSET,
                 )
             )
-        if self.save_freq > 0:
-            self.saver.eval_env = self.eval_env
-            own.append(self.saver)
+        # Always there: without periodic checkpoints it still saves the one of a stop (Ctrl-C).
+        self.saver.eval_env = self.eval_env
+        own.append(self.saver)
         self.callbacks = [*own, *self.callbacks, *self.extra_callbacks]
 
     def create_envs(self, n_envs: int, eval_env: bool = False, no_log: bool = False) -> VecEnv:
@@ -268,8 +271,11 @@ class RunManager(ExperimentManager):
 
     def learn(self, model: BaseAlgorithm) -> None:
         """
-        Train to the budget. Ctrl-C saves a checkpoint and raises :class:`RunInterrupted`; a NaN or inf raises
-        :class:`~sb3_adc.experiment.divergence.TrainingDiverged`, naming the checkpoint left to resume from.
+        Train to the budget. Ctrl-C stops the run after the step in progress with a checkpoint that a resume
+        continues exactly, and raises :class:`RunInterrupted`; a second Ctrl-C (or a ``KeyboardInterrupt`` from
+        elsewhere) stops it at once with a checkpoint of wherever it fell, resumed on a new random stream. A NaN
+        or inf raises :class:`~sb3_adc.experiment.divergence.TrainingDiverged`, naming the checkpoint left to
+        resume from.
 
         :param model: The model of :meth:`setup_experiment`
         """
@@ -282,7 +288,7 @@ class RunManager(ExperimentManager):
         if self.continuation is not None:
             self._continue(model)
         try:
-            with warnings.catch_warnings():
+            with warnings.catch_warnings(), self._stop_on_ctrl_c():
                 # SB3's progress bar uses tqdm's rich front-end, which warns that it is experimental.
                 warnings.filterwarnings("ignore", category=TqdmExperimentalWarning)
                 model.learn(
@@ -291,6 +297,10 @@ class RunManager(ExperimentManager):
                     reset_num_timesteps=self.checkpoint is None,
                     progress_bar=self.show_progress,
                 )
+        except StopRequested as stop:
+            print(f"\nInterrupted: checkpoint at timestep {stop.timesteps} saved; resuming continues the same run.")
+            print(f"Continue with: sb3-adc train --resume {self.save_path}")
+            raise RunInterrupted(self.save_path, stop.timesteps) from None
         except KeyboardInterrupt:
             if self.saver.model is None:
                 self.saver.init_callback(model)
@@ -361,6 +371,30 @@ class RunManager(ExperimentManager):
         return self.evaluate(model)
 
     # --- helpers ---
+
+    @contextmanager
+    def _stop_on_ctrl_c(self) -> Iterator[None]:
+        """
+        While training, the first Ctrl-C (SIGINT) asks the checkpoint callback to stop after the step in progress;
+        a second one raises ``KeyboardInterrupt`` at once. Signal handlers belong to the main thread: elsewhere
+        (a thread of the caller's) Ctrl-C keeps Python's behaviour.
+        """
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+        saver = self.saver
+
+        def request_stop(signum: int, frame: Any) -> None:
+            if saver.stop_requested:
+                raise KeyboardInterrupt
+            saver.stop_requested = True
+            print("\nCtrl-C: stopping after this step with a checkpoint (Ctrl-C again stops at once).", flush=True)
+
+        previous = signal.signal(signal.SIGINT, request_stop)
+        try:
+            yield
+        finally:
+            signal.signal(signal.SIGINT, previous)
 
     def _continue(self, model: BaseAlgorithm) -> None:
         """Restore the checkpoint's continuation: the environments where the run left them, the random generators

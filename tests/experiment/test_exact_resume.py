@@ -7,15 +7,17 @@ from __future__ import annotations
 
 import glob
 import os
+import signal
 
 import gymnasium as gym
 import numpy as np
 import pandas as pd
 import pytest
 import torch as th
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.save_util import load_from_pkl, load_from_zip_file
 
-from sb3_adc.experiment import TrainSettings, resume, train
+from sb3_adc.experiment import RunInterrupted, TrainSettings, resume, train
 from sb3_adc.experiment.continuation import EpisodeRecorder
 from sb3_adc.experiment.layout import RunLayout
 
@@ -214,6 +216,51 @@ def test_a_checkpoint_without_continuation_goes_on_from_a_new_random_stream(unin
     )
     with pytest.raises(AssertionError, match=r"Pendulum-v1\.zip"):
         assert_same_run(expected, run_dir, "Pendulum-v1")
+
+
+class CtrlCAt(BaseCallback):
+    """Press Ctrl-C (SIGINT to this process) ``presses`` times when training reaches a timestep."""
+
+    def __init__(self, at: int, presses: int = 1):
+        super().__init__()
+        self.at = at
+        self.presses = presses
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps == self.at:
+            for _ in range(self.presses):
+                os.kill(os.getpid(), signal.SIGINT)
+        return True
+
+
+def test_ctrl_c_stops_after_the_step_and_the_run_resumes_exactly(uninterrupted, tmp_path, capsys):
+    expected = uninterrupted("adc-pendulum")
+    handler = signal.getsignal(signal.SIGINT)
+    with pytest.raises(RunInterrupted) as interrupted:
+        train(settings(tmp_path, "adc-pendulum", "logs"), callbacks=[CtrlCAt(250)])
+    assert signal.getsignal(signal.SIGINT) is handler
+    # Pressed during the callbacks of step 250 (after the checkpoint callback's turn): the run stops at the next.
+    assert interrupted.value.timesteps == 251
+    out = capsys.readouterr().out
+    assert "Ctrl-C: stopping after this step with a checkpoint (Ctrl-C again stops at once)." in out
+    assert "Interrupted: checkpoint at timestep 251 saved; resuming continues the same run." in out
+    run_dir = interrupted.value.run_dir
+    assert os.path.isfile(RunLayout(run_dir, "Pendulum-v1").checkpoint(251).continuation)
+    assert resume(run_dir).resumed_from == 251
+    assert "new random stream" not in capsys.readouterr().out
+    assert_same_run(expected, run_dir, "Pendulum-v1")
+
+
+def test_a_second_ctrl_c_stops_at_once_without_continuation(tmp_path, capsys):
+    handler = signal.getsignal(signal.SIGINT)
+    with pytest.raises(RunInterrupted) as interrupted:
+        train(settings(tmp_path, "adc-pendulum", "logs"), callbacks=[CtrlCAt(250, presses=2)])
+    assert signal.getsignal(signal.SIGINT) is handler
+    assert interrupted.value.timesteps == 250
+    assert "Interrupted: checkpoint at timestep 250 saved.\n" in capsys.readouterr().out
+    checkpoint = RunLayout(interrupted.value.run_dir, "Pendulum-v1").checkpoint(250)
+    assert os.path.isfile(checkpoint.model)
+    assert not os.path.exists(checkpoint.continuation)
 
 
 def test_frame_stacking_leaves_checkpoints_without_continuation(tmp_path):
