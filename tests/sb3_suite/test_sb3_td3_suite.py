@@ -1,10 +1,11 @@
 """
-Stable-Baselines3's own TD3 tests, run against ADC.
+Stable-Baselines3's own TD3 tests, run against ADC and against the ``td3`` of every comparison
+(:class:`~sb3_adc.baselines.AveragedActorTD3` with the averaged actor on).
 
 The tests come from the source distribution of the installed ``stable-baselines3`` version (the one
 ``constraints.txt`` pins), downloaded once with ``pip download`` into ``.cache/sb3-tests/`` (ignored by git);
 nothing of SB3 is vendored. They run in a separate pytest process with the :mod:`td3_as_adc` plugin, which
-rebinds ``stable_baselines3.TD3`` to ADC and keeps only the tests that exercise it. Without network access and
+rebinds ``stable_baselines3.TD3`` to the class under test and keeps only the tests that exercise it. Without network access and
 without the cache the test is skipped, saying why; ``SB3_ADC_SB3_SDIST`` may name an sdist downloaded beforehand.
 
 :data:`SB3_TEST_MODULES` are the modules run by default (about a minute on one core);
@@ -114,7 +115,8 @@ def sb3_tests(version: str) -> Path:
 
 
 @pytest.mark.slow
-def test_sb3_td3_tests_pass_with_adc(tmp_path):
+@pytest.mark.parametrize("under_test", ["adc", "averaged_td3"])
+def test_sb3_td3_tests_pass(tmp_path, under_test):
     version = sb3_version()
     root = sb3_tests(version)
     modules = ALL_TD3_MODULES if os.environ.get("SB3_ADC_SB3_SUITE") == "all" else SB3_TEST_MODULES
@@ -124,6 +126,7 @@ def test_sb3_td3_tests_pass_with_adc(tmp_path):
         os.environ,
         PYTHONPATH=os.pathsep.join(filter(None, [str(HERE), os.environ.get("PYTHONPATH")])),
         OMP_NUM_THREADS="1",  # one core: the suite shares the machine with the other tests
+        SB3_ADC_SUITE_CLASS=under_test,
     )
     command = [
         sys.executable,
@@ -150,7 +153,7 @@ def test_sb3_td3_tests_pass_with_adc(tmp_path):
     # The SB3 tests write logs relative to the working directory: keep them out of the repository and the cache.
     result = subprocess.run(command, cwd=tmp_path, env=environment, capture_output=True, text=True, timeout=1200, check=False)
     output = result.stdout + result.stderr
-    assert result.returncode == 0, f"SB3 {version}'s TD3 tests fail with ADC:\n{output[-6000:]}"
+    assert result.returncode == 0, f"SB3 {version}'s TD3 tests fail with {under_test}:\n{output[-6000:]}"
     passed = re.search(r"(\d+) passed", output)
     assert passed is not None, output[-3000:]
     assert int(passed.group(1)) >= MIN_TESTS_RUN, output[-3000:]
