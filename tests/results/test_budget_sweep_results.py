@@ -99,35 +99,15 @@ def test_the_averaged_actor_sweep_holds_the_same_runs_as_its_control():
 
 
 @pytest.mark.parametrize("argv", [[], ["--configs", "CONFIGS"]], ids=["entry and gammas", "configs file"])
-def test_every_configuration_overrides_the_frozen_starting_entry(tmp_path, monkeypatch, argv):
+def test_every_configuration_overrides_the_frozen_starting_entry(tmp_path, grid_settings, argv):
     """A sweep keeps its meaning when the shipped entry changes: every configuration resolves against
     ``benchmarks/configs/starting_entries/``, with or without a configuration file."""
     from sb3_adc.config.loader import load_hyperparams, read_hyperparams_file, select_entry
 
-    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
-    budget_sweep = importlib.import_module("budget_sweep")
-    monkeypatch.setattr(budget_sweep, "RUNS_DIR", tmp_path / "runs")
-    monkeypatch.setattr(budget_sweep, "RESULTS_DIR", tmp_path / "results")
-    grids = []
-
-    class Stop(Exception):
-        pass
-
-    def run_benchmarks(settings, **_):
-        grids.extend(settings)
-        raise Stop
-
-    monkeypatch.setattr(budget_sweep, "run_benchmarks", run_benchmarks)
     configs = tmp_path / "configs.yml"
     configs.write_text("long horizon: {gamma: 0.99}\n")
     argv = [str(configs) if arg == "CONFIGS" else arg for arg in argv]
-    monkeypatch.setattr(sys, "argv", ["budget_sweep.py", "--algo", "td3", *argv])
-    try:
-        with pytest.raises(Stop):
-            budget_sweep.main()
-    finally:
-        sys.modules.pop("budget_sweep", None)
-        sys.modules.pop("procedural_generalisation", None)
+    grids = grid_settings("budget_sweep", "run_benchmarks", ["--algo", "td3", *argv])
     env_id = "sb3_adc/LidarObstacleCourse-v1"
     path = str(ROOT / "benchmarks" / "configs" / "starting_entries" / "td3.yml")
     start, _ = select_entry(read_hyperparams_file(path), env_id, path)

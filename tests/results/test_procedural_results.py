@@ -122,38 +122,16 @@ def test_configs_file_is_checked_before_anything_runs(tmp_path, monkeypatch, cap
     sys.modules.pop("procedural_generalisation", None)
 
 
-def _procedural_settings(tmp_path, monkeypatch, argv):
+def _procedural_settings(grid_settings, argv):
     """The grid settings ``procedural_generalisation.py`` trains with for ``argv``, stopped before any training."""
-    import importlib
-    import sys
-
-    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
-    procedural_generalisation = importlib.import_module("procedural_generalisation")
-    monkeypatch.setattr(procedural_generalisation, "RUNS_DIR", tmp_path / "runs")
-    monkeypatch.setattr(procedural_generalisation, "RESULTS_DIR", tmp_path / "results")
-    trained = []
-
-    class Stop(Exception):
-        pass
-
-    def run_benchmark(settings, **_):
-        trained.append(settings)
-        raise Stop
-
-    monkeypatch.setattr(procedural_generalisation, "run_benchmark", run_benchmark)
-    monkeypatch.setattr(sys, "argv", ["procedural_generalisation.py", *argv])
-    try:
-        with pytest.raises(Stop):
-            procedural_generalisation.main()
-    finally:
-        sys.modules.pop("procedural_generalisation", None)
-    return trained[0]
+    (settings,) = grid_settings("procedural_generalisation", "run_benchmark", argv)
+    return settings
 
 
-def test_algos_trains_a_subset_of_a_configs_file_with_its_overrides(tmp_path, monkeypatch):
+def test_algos_trains_a_subset_of_a_configs_file_with_its_overrides(tmp_path, grid_settings):
     path = tmp_path / "configs.yml"
     path.write_text("adc: {gamma: 0.95}\nddpg: {gamma: 0.97}\ntd3: {gamma: 0.96, n_timesteps: 1000}\n")
-    settings = _procedural_settings(tmp_path, monkeypatch, ["--configs", str(path), "--algos", "td3"])
+    settings = _procedural_settings(grid_settings, ["--configs", str(path), "--algos", "td3"])
     assert settings.algos == ["td3"]
     assert settings.n_timesteps == 1000
     assert settings.overrides["gamma"] == 0.96
@@ -161,7 +139,7 @@ def test_algos_trains_a_subset_of_a_configs_file_with_its_overrides(tmp_path, mo
 
 
 @pytest.mark.parametrize("robot", ["kinematic", "wheeled"])
-def test_configs_files_override_the_frozen_starting_entries_not_the_shipped_ones(tmp_path, monkeypatch, robot):
+def test_configs_files_override_the_frozen_starting_entries_not_the_shipped_ones(tmp_path, monkeypatch, grid_settings, robot):
     """A configuration file keeps its meaning when a shipped entry changes: ``--configs`` runs resolve their
     overrides against ``benchmarks/configs/starting_entries/``, runs without it against ``hyperparams/``."""
     import yaml
@@ -184,7 +162,7 @@ def test_configs_files_override_the_frozen_starting_entries_not_the_shipped_ones
 
     configs = tmp_path / "configs.yml"
     configs.write_text("td3: {gamma: 0.96}\n")
-    settings = _procedural_settings(tmp_path, monkeypatch, ["--configs", str(configs), "--robot", robot])
+    settings = _procedural_settings(grid_settings, ["--configs", str(configs), "--robot", robot])
     assert settings.conf_folder == str(starting)
     config = resolved(settings)
     assert config.saved["gamma"] == 0.96
@@ -192,7 +170,7 @@ def test_configs_files_override_the_frozen_starting_entries_not_the_shipped_ones
     assert "rays_per_reading" not in config.env_kwargs
     assert config.env_kwargs.get("robot", "kinematic") == robot
     # Without a configuration file the grid trains the shipped entries as they are.
-    shipped_grid = _procedural_settings(tmp_path, monkeypatch, ["--algos", "td3", "--robot", robot])
+    shipped_grid = _procedural_settings(grid_settings, ["--algos", "td3", "--robot", robot])
     assert shipped_grid.conf_folder is None
     config = resolved(shipped_grid)
     assert config.saved["batch_size"] == 512
