@@ -140,6 +140,19 @@ class ActorAverageTD3Policy(TD3Policy):
             self.actor_average.set_training_mode(False)
             self._average_parameters = (list(self.actor.parameters()), list(self.actor_average.parameters()))
 
+    def set_training_mode(self, mode: bool) -> None:
+        """
+        SB3's ``TD3Policy.set_training_mode`` (the actor and the critics; the targets and the average stay in
+        evaluation mode), skipped when they are in that mode already: SB3 calls it three times per environment step
+        (collecting, predicting, training), and ``nn.Module.train`` walks every submodule through
+        ``nn.Module.__setattr__``, a noticeable share of a training step with small networks.
+
+        :param mode: Training mode (``True``) or evaluation mode
+        """
+        if self.training == mode and self.actor.training == mode and self.critic.training == mode:
+            return
+        super().set_training_mode(mode)
+
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
         if deterministic and self.actor_average is not None:
             return self.actor_average(observation)

@@ -142,3 +142,27 @@ def test_the_policy_class_records_the_option_for_loading():
     model = make(actor_average_tau=0.2)
     assert isinstance(model.policy, ADCPolicy)
     assert model.policy._get_constructor_parameters()["actor_average_tau"] == 0.2
+
+
+@pytest.mark.parametrize("algorithm", [ADC, AveragedActorTD3, SplitRateDDPG])
+def test_training_mode_reaches_the_actor_and_critics_only(algorithm):
+    """SB3's rule (the targets and the average stay in evaluation mode), with the walk skipped when nothing changes;
+    a mode set on the actor or the critics alone is still corrected by the next call."""
+    policy = make(actor_average_tau=0.05, algorithm=algorithm).policy
+    learned = [policy.actor, policy.critic]
+    fixed = [policy.actor_target, policy.critic_target, policy.actor_average]
+
+    def modes(modules):
+        return {submodule.training for module in modules for submodule in module.modules()}
+
+    for mode in (True, True, False, False, True):
+        policy.set_training_mode(mode)
+        assert policy.training == mode
+        assert modes(learned) == {mode}
+        assert modes(fixed) == {False}
+    policy.critic.set_training_mode(False)  # behind the policy's back
+    policy.set_training_mode(True)
+    assert modes(learned) == {True}
+    policy.actor.set_training_mode(False)
+    policy.set_training_mode(True)
+    assert modes(learned) == {True}
