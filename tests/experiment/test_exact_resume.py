@@ -29,9 +29,12 @@ default:
   batch_size: 16
   buffer_size: 1000
   gamma: 0.9
+  policy_kwargs: "dict(net_arch=[8])"
+"""
+#: The exploration noise of the deterministic actors.
+NOISE = """\
   noise_type: normal
   noise_std: 0.1
-  policy_kwargs: "dict(net_arch=[8])"
 """
 LIDAR = """\
   env_kwargs:
@@ -45,19 +48,28 @@ LIDAR = """\
 #: (algorithm, environment, lines added to the configuration): every source of state a resume must restore.
 CASES = {
     # ADC's epsilon-gated noise draws from NumPy's global generator; Pendulum's own generator draws the starts.
-    "adc-pendulum": ("adc", "Pendulum-v1", ""),
+    "adc-pendulum": ("adc", "Pendulum-v1", NOISE),
     # Two environments, each with an episode in progress; the observation noise has its own generator; the
     # layouts, the start jitter and the reward shaping's state.
     "td3-noisy-lidar-2-envs": (
         "td3",
         "sb3_adc/LidarObstacleCourseNoisy-v1",
-        "  n_envs: 2\n" + LIDAR.format(sensor="rays_per_reading: 4"),
+        NOISE + "  n_envs: 2\n" + LIDAR.format(sensor="rays_per_reading: 4"),
     ),
     # The wheeled robot's pybullet dynamics.
-    "adc-wheeled-lidar": ("adc", "sb3_adc/LidarObstacleCourse-v1", LIDAR.format(sensor="robot: wheeled")),
+    "adc-wheeled-lidar": ("adc", "sb3_adc/LidarObstacleCourse-v1", NOISE + LIDAR.format(sensor="robot: wheeled")),
+    # SAC samples its actions and updates its entropy coefficient from PyTorch's generator.
+    "sac-pendulum": ("sac", "Pendulum-v1", ""),
+    # DQN's epsilon-greedy exploration draws from NumPy's generator and the action space's; its target update
+    # counts calls.
+    "dqn-cartpole": ("dqn", "CartPole-v1", "  exploration_fraction: 0.5\n  target_update_interval: 50\n"),
     # VecNormalize's running statistics and discounted returns (episodes of 150 steps: one is in progress at
     # the checkpoint, so the returns are not zero).
-    "td3-normalized-pendulum": ("td3", "Pendulum-v1", "  normalize: true\n  env_kwargs: {max_episode_steps: 150}\n"),
+    "td3-normalized-pendulum": (
+        "td3",
+        "Pendulum-v1",
+        NOISE + "  normalize: true\n  env_kwargs: {max_episode_steps: 150}\n",
+    ),
 }
 
 
