@@ -218,7 +218,7 @@ def main() -> None:
             if len(checkpoints) < N_CHECKPOINTS:
                 raise SystemExit(f"{run_dir}: {len(checkpoints)} checkpoints, expected {N_CHECKPOINTS}")
             jobs += [(run_dir, config, seed, point.timesteps, point.model, n_layouts) for point in checkpoints]
-    training = training_record(output, statuses, time.perf_counter() - start, args.workers)
+    training = training_record(output, statuses, time.perf_counter() - start, args.workers, runs_folder=RUNS_DIR / name)
     start = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         sweep = pd.DataFrame([row for rows in pool.map(score_checkpoint, *zip(*jobs, strict=True)) for row in rows])

@@ -78,6 +78,7 @@ from sb3_adc.config.experiment_config import ExperimentConfig
 from sb3_adc.config.loader import HyperparamsError, load_hyperparams, read_yaml_file
 from sb3_adc.experiment.benchmark import EVALUATIONS_CSV, FINAL_CSV, BenchmarkSettings, RunOutcome, RunSpec, run_benchmark
 from sb3_adc.experiment.enjoy import load_model, load_run, model_path
+from sb3_adc.experiment.invocations import INVOCATIONS_JSON, read_invocations
 from sb3_adc.experiment.plots import plot_final_performance, plot_trajectories
 from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc.experiment.settings import TrainSettings
@@ -246,7 +247,12 @@ def load_for_scoring(
 
 
 def training_record(
-    output: Path, statuses: Counter[str], seconds: float, workers: int, algos: list[str] | None = None
+    output: Path,
+    statuses: Counter[str],
+    seconds: float,
+    workers: int,
+    algos: list[str] | None = None,
+    runs_folder: Path | None = None,
 ) -> dict[str, Any]:
     """
     The training facts to record in ``output/metadata.json``: ``training_invocations``, one entry per invocation
@@ -254,21 +260,43 @@ def training_record(
     it trained, resumed or found finished), ``training_wall_time_s``, their total, and ``training_workers``, the
     last one's.
 
-    An invocation that only scores (every run finished before) keeps the earlier record; one that trains some runs
-    and finds others finished adds itself to it (an algorithm added to a ``--configs`` file); one that finds none of
-    its runs finished replaces the earlier invocations of its algorithms and keeps those of the grid's other
-    algorithms (trained by an invocation with other ``--algos``).
+    Where the engine recorded the invocations (``invocations.json`` in the grid folders under ``runs_folder``,
+    :mod:`sb3_adc.experiment.invocations`), they are the record, those stopped or killed before they finished
+    included (``finished`` false, with ``started``). Entries of ``metadata.json`` from before that record are kept
+    when the first recorded invocation found runs made before it. Without the record, from the counts of this
+    invocation: an invocation that only scores (every run finished before) keeps the earlier record; one that
+    trains some runs and finds others finished adds itself to it (an algorithm added to a ``--configs`` file); one
+    that finds none of its runs finished replaces the earlier invocations of its algorithms and keeps those of the
+    grid's other algorithms (trained by an invocation with other ``--algos``).
 
     :param algos: The algorithms of this invocation (``None``: every algorithm of the grid)
+    :param runs_folder: The folder of the grid's run folders (one per algorithm or configuration)
     """
+    previous = output / "metadata.json"
+    earlier = json.loads(previous.read_text()) if previous.exists() else {}
+    journals = sorted(runs_folder.glob(f"*/{INVOCATIONS_JSON}")) if runs_folder is not None else []
+    recorded = read_invocations(str(path.parent) for path in journals)
+    if recorded:
+        first = recorded[0]["runs"]
+        legacy = [entry for entry in earlier.get("training_invocations", []) if "started" not in entry]
+        kept = legacy if first.get("skipped", 0) + first.get("resumed", 0) else []
+        worked = [
+            {key: entry[key] for key in ("started", "wall_time_s", "workers", "algos", "runs", "finished")}
+            for entry in recorded
+            if entry["runs"].get("trained", 0) + entry["runs"].get("resumed", 0) or not entry["finished"]
+        ]
+        invocations = [*kept, *worked]
+        return {
+            "training_wall_time_s": round(sum(invocation["wall_time_s"] for invocation in invocations), 1),
+            "training_workers": invocations[-1]["workers"] if invocations else workers,
+            "training_invocations": invocations,
+        }
     this = {
         "wall_time_s": round(seconds, 1),
         "workers": workers,
         **({"algos": list(algos)} if algos is not None else {}),
         "runs": dict(sorted(statuses.items())),
     }
-    previous = output / "metadata.json"
-    earlier = json.loads(previous.read_text()) if previous.exists() else {}
     history = earlier.get("training_invocations")
     if history is None and "training_wall_time_s" in earlier:
         # Metadata written before the record was kept per invocation: one invocation.
@@ -574,7 +602,7 @@ def main() -> None:
         evaluations.append(pd.read_csv(result.tables[EVALUATIONS_CSV]))
     # The training of the grid (recorded beside its final models when `--model best` finds every run finished).
     elapsed = time.perf_counter() - start
-    training = training_record(RESULTS_DIR / runs_name, statuses, elapsed, args.workers, args.algos)
+    training = training_record(RESULTS_DIR / runs_name, statuses, elapsed, args.workers, args.algos, folder)
     if args.validation:  # beside the training record: the runs' evaluations, whichever model is scored
         validation_table(pd.concat(evaluations, ignore_index=True)).to_csv(
             RESULTS_DIR / runs_name / VALIDATION_CSV, index=False

@@ -8,7 +8,9 @@ ones from their last checkpoint and starts the others; a run on disk made with o
 hyperparameters, budget, evaluation) is refused before anything runs (:class:`RunSettingsMismatch`). Results
 are written to ``{log_folder}``: ``evaluations.csv`` (the evaluation curves), ``episodes.csv`` (training
 episodes) and ``final.csv`` (final evaluations), with the rows of every finished run in the folder, of this
-grid or not; see :mod:`sb3_adc.experiment.results` for the columns.
+grid or not; see :mod:`sb3_adc.experiment.results` for the columns. ``invocations.json`` records each
+invocation that worked on the grid and its wall time, including one killed before it finished
+(:mod:`sb3_adc.experiment.invocations`).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from typing import Any
 import yaml
 
 from sb3_adc.config.loader import read_yaml_file
+from sb3_adc.experiment.invocations import InvocationJournal
 from sb3_adc.experiment.layout import DamagedFileError, RunLayout, env_name
 from sb3_adc.experiment.results import (
     EPISODE_COLUMNS,
@@ -421,11 +424,19 @@ def run_benchmarks(
         outcomes_iterator = run_ray(jobs, address)
     # Each outcome names its grid's log folder, and the folders are distinct.
     outcomes: dict[str, list[RunOutcome]] = {folder: [] for folder in folders}
+    journal = InvocationJournal(
+        [(folder, settings.algos, len(settings.grid())) for settings, folder in zip(grids, folders, strict=True)],
+        workers=(workers or os.cpu_count() or 1) if backend == "local" else "cluster",
+        backend=backend,
+    )
     try:
-        for done, outcome in enumerate(outcomes_iterator, start=1):
-            outcomes[os.path.normpath(outcome.log_folder)].append(outcome)
-            if report is not None:
-                report(outcome, done, len(jobs))
+        with journal:
+            for done, outcome in enumerate(outcomes_iterator, start=1):
+                folder = os.path.normpath(outcome.log_folder)
+                outcomes[folder].append(outcome)
+                journal.record(folder, outcome.status)
+                if report is not None:
+                    report(outcome, done, len(jobs))
     except KeyboardInterrupt:
         # Ctrl-C: the runs in progress saved a checkpoint; the tables keep the runs that finished.
         for settings, folder in zip(grids, folders, strict=True):

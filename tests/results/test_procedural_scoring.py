@@ -278,6 +278,54 @@ def test_the_training_record_follows_the_invocations_that_trained(scripts, tmp_p
     ]
 
 
+def test_the_engines_record_of_invocations_is_the_training_record(scripts, tmp_path):
+    """With ``invocations.json`` in the grid's run folders, every invocation that trained or resumed runs, or was
+    cut short, is on record, from any invocation (scoring-only ones included); older metadata entries stay only
+    when the first recorded invocation found runs made before it."""
+    from sb3_adc.experiment.invocations import InvocationJournal
+
+    procedural, _ = scripts
+    output, runs = tmp_path / "results", tmp_path / "runs"
+    output.mkdir()
+    legacy = {"wall_time_s": 900.0, "workers": 2, "runs": {"trained": 2}}
+    (output / "metadata.json").write_text(json.dumps({"training_invocations": [legacy]}))
+    now = [0.0]
+
+    def invocation(folder, statuses, seconds, finished=True):
+        journal = InvocationJournal([(str(runs / folder), [folder], 5)], 2, "local", clock=lambda: now[0])
+        try:
+            with journal:
+                for status in statuses:
+                    journal.record(str(runs / folder), status)
+                now[0] += seconds
+                if not finished:
+                    raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            pass
+        now[0] += 1000.0  # between invocations
+
+    invocation("td3", ["resumed", "trained"], 0.0, finished=False)  # killed: its time is the last heartbeat's
+    invocation("td3", ["skipped", "skipped", "trained", "trained", "trained"], 1200.0)
+    invocation("ddpg", ["trained"] * 5, 600.0)
+    invocation("td3", ["skipped"] * 5, 5.0)  # scoring only
+    record = procedural.training_record(output, Counter(skipped=5), 5.0, 1, ["td3"], runs)
+    entries = record["training_invocations"]
+    assert entries[0] == legacy  # the first recorded invocation resumed runs made before the record
+    assert [entry["finished"] for entry in entries[1:]] == [False, True, True]
+    assert [entry["algos"] for entry in entries[1:]] == [["td3"], ["td3"], ["ddpg"]]
+    assert [entry["wall_time_s"] for entry in entries[1:]] == [0.0, 1200.0, 600.0]
+    assert record["training_wall_time_s"] == 2700.0
+    assert record["training_workers"] == 2
+    # Runs trained from scratch by the first recorded invocation: the older entries describe other runs.
+    for path in runs.glob("*/invocations.json"):
+        path.unlink()
+    invocation("td3", ["trained"] * 5, 50.0)
+    assert procedural.training_record(output, Counter(trained=5), 50.0, 2, ["td3"], runs)["training_invocations"] == [
+        {key: value for key, value in entry.items() if key not in ("id", "backend", "runs_in_grid")}
+        for entry in json.loads((runs / "td3" / "invocations.json").read_text())
+    ]
+
+
 def test_validated_runs_keep_the_model_of_the_best_validation_success(scripts, tmp_path):
     """``--validation``: runs of their own whose periodic evaluations are on validation layouts, by success."""
     procedural, _ = scripts
