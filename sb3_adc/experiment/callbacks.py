@@ -288,7 +288,8 @@ class CheckpointSaver(CheckpointCallback):
         :param step_locals: ``collect_rollouts``' locals when saving inside a step (the periodic checkpoints),
             ``None`` between steps
         :param exact: Whether the run is at a point it can be continued exactly from (``False``: interrupted
-            anywhere, by Ctrl-C; the checkpoint then holds no continuation)
+            wherever a ``KeyboardInterrupt`` fell, such as a second Ctrl-C's; the checkpoint then holds no
+            continuation)
         :raises NonFiniteWeights: if the model's weights hold NaN or inf (nothing is written)
         """
         check_finite_weights(self.model)

@@ -249,8 +249,9 @@ class RunManager(ExperimentManager):
             if self.continuation is None:
                 # A new random stream: the resumed part does not replay the first part's draws.
                 print(
-                    f"The checkpoint at timestep {self.checkpoint.timesteps} has no continuation (saved on Ctrl-C, "
-                    "or by an older version): the run goes on from a new random stream."
+                    f"The checkpoint at timestep {self.checkpoint.timesteps} has no continuation (taken by a second "
+                    "Ctrl-C, saved by an older version, or of a run whose state a continuation does not cover): the "
+                    "run goes on from a new random stream."
                 )
                 model.set_random_seed(self.seed + self.checkpoint.timesteps)
             return model
