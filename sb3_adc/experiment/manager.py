@@ -245,7 +245,10 @@ class RunManager(ExperimentManager):
             if os.path.isfile(self.checkpoint.replay_buffer) and hasattr(model, "load_replay_buffer"):
                 model.load_replay_buffer(self.checkpoint.replay_buffer)
             if os.path.isfile(self.checkpoint.continuation):
-                self.continuation = Continuation.load(self.checkpoint.continuation)
+                continuation = Continuation.load(self.checkpoint.continuation)
+                # Another checkpoint's (a file copied by hand) would continue another point of the run.
+                if continuation is not None and continuation.timesteps == model.num_timesteps:
+                    self.continuation = continuation
             if self.continuation is None:
                 # A new random stream: the resumed part does not replay the first part's draws.
                 print(

@@ -275,6 +275,16 @@ def test_a_second_ctrl_c_stops_at_once_without_continuation(tmp_path, capsys):
     assert not os.path.exists(checkpoint.continuation)
 
 
+def test_a_continuation_of_another_checkpoint_is_not_used(tmp_path, capsys):
+    run_dir = train(settings(tmp_path, "adc-pendulum", "logs", n_timesteps=400)).run_dir
+    layout = RunLayout(run_dir, "Pendulum-v1")
+    os.replace(layout.checkpoint(400).continuation, layout.checkpoint(200).continuation)
+    crash_after(run_dir, "Pendulum-v1", 200)
+    capsys.readouterr()
+    assert resume(run_dir).resumed_from == 200
+    assert "has no continuation" in capsys.readouterr().out
+
+
 def test_frame_stacking_leaves_checkpoints_without_continuation(tmp_path):
     # VecFrameStack keeps the last observations, which a continuation does not restore.
     conf = tmp_path / "td3.yml"
