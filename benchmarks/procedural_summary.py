@@ -58,9 +58,6 @@ SIGHTINGS = ["hit_obstacle", "hit_unseen"]
 AVERAGE_ADC = "LidarObstacleCourse-v1_n_step_150k_sectors_average_validation"
 AVERAGE_TD3 = "LidarObstacleCourse-v1_n_step_td3_150k_sectors_average_validation"
 ACTOR_ITSELF = "_actor_itself"
-#: The same two configurations with 300,000 steps (their comparisons are listed before the grids ran).
-AVERAGE_ADC_300K = "LidarObstacleCourse-v1_n_step_300k_sectors_average_validation"
-AVERAGE_TD3_300K = "LidarObstacleCourse-v1_n_step_td3_300k_sectors_average_validation"
 COMPARISONS = [
     ("LidarObstacleCourse-v1_n_step_150k_sectors_validation", "LidarObstacleCourse-v1_n_step_150k_validation"),
     ("LidarObstacleCourse-v1_n_step_150k_sectors_validation_best", "LidarObstacleCourse-v1_n_step_150k_validation_best"),
@@ -69,12 +66,6 @@ COMPARISONS = [
     (AVERAGE_TD3 + ACTOR_ITSELF, "LidarObstacleCourse-v1_n_step_td3_150k"),
     (AVERAGE_ADC, AVERAGE_TD3),
     (AVERAGE_ADC + ACTOR_ITSELF, AVERAGE_TD3 + ACTOR_ITSELF),
-    (AVERAGE_ADC_300K, AVERAGE_ADC),
-    (AVERAGE_TD3_300K, AVERAGE_TD3),
-    (AVERAGE_ADC_300K, AVERAGE_ADC_300K + ACTOR_ITSELF),
-    (AVERAGE_TD3_300K, AVERAGE_TD3_300K + ACTOR_ITSELF),
-    (AVERAGE_ADC_300K, AVERAGE_TD3_300K),
-    (AVERAGE_ADC_300K + ACTOR_ITSELF, AVERAGE_TD3_300K + ACTOR_ITSELF),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
