@@ -412,21 +412,24 @@ def run_benchmarks(
     if backend not in ("local", "ray"):
         raise ValueError(f"`backend` must be 'local' or 'ray', got {backend!r}.")
     jobs: list[Job] = []
+    sizes = []
     for settings in grids:
         specs = settings.grid()
         if not specs:
             raise ValueError("the grid is empty: give at least one algorithm, environment and seed.")
         check_runs_on_disk(settings)
         jobs += [(spec, settings) for spec in specs]
+        sizes.append(len(specs))
+    n_workers = workers or os.cpu_count() or 1
     if backend == "local":
-        outcomes_iterator: Iterable[RunOutcome] = run_local(jobs, workers or os.cpu_count() or 1)
+        outcomes_iterator: Iterable[RunOutcome] = run_local(jobs, n_workers)
     else:
         outcomes_iterator = run_ray(jobs, address)
     # Each outcome names its grid's log folder, and the folders are distinct.
     outcomes: dict[str, list[RunOutcome]] = {folder: [] for folder in folders}
     journal = InvocationJournal(
-        [(folder, settings.algos, len(settings.grid())) for settings, folder in zip(grids, folders, strict=True)],
-        workers=(workers or os.cpu_count() or 1) if backend == "local" else "cluster",
+        [(folder, settings.algos, size) for settings, folder, size in zip(grids, folders, sizes, strict=True)],
+        workers=n_workers if backend == "local" else "cluster",
         backend=backend,
     )
     try:

@@ -340,7 +340,7 @@ def checkpoint_damage(checkpoint: Checkpoint) -> str | None:
         return f"{os.path.basename(checkpoint.model)}: member {broken} is corrupted"
     if "data" not in names:
         return f"{os.path.basename(checkpoint.model)} holds no SB3 model (no `data` member)"
-    for path in (checkpoint.replay_buffer, checkpoint.vecnormalize, checkpoint.continuation):
+    for path in checkpoint.files[1:]:  # the pickles beside the model zip
         if os.path.isfile(path):
             try:
                 load_from_pkl(path)

@@ -75,11 +75,14 @@ class InvocationJournal:
             for folder, algos, runs in grids
         }
         self._start = clock()
+        # The other invocations' entries, read once: a grid folder has one invocation working on it at a time.
+        self._others: dict[str, list[dict[str, Any]]] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._heartbeat: threading.Thread | None = None
 
     def __enter__(self) -> InvocationJournal:
+        self._others = {folder: _read(os.path.join(folder, INVOCATIONS_JSON)) for folder in self.folders}
         self._write()
         self._heartbeat = threading.Thread(target=self._beat, name="invocation-journal", daemon=True)
         self._heartbeat.start()
@@ -116,10 +119,8 @@ class InvocationJournal:
             elapsed = round(self.clock() - self._start, 1)
             for folder, entry in self.entries.items():
                 entry["wall_time_s"] = elapsed
-                path = os.path.join(folder, INVOCATIONS_JSON)
-                others = [other for other in _read(path) if other.get("id") != self.id]
                 os.makedirs(folder, exist_ok=True)
-                write_atomically(path, partial(_dump, [*others, entry]))
+                write_atomically(os.path.join(folder, INVOCATIONS_JSON), partial(_dump, [*self._others[folder], entry]))
 
 
 def read_invocations(folders: Iterable[str]) -> list[dict[str, Any]]:
