@@ -62,7 +62,7 @@ from procedural_generalisation import (
 )
 
 from sb3_adc.config.loader import HyperparamsError
-from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSpec, run_benchmarks
+from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSpec, run_benchmarks, run_script
 from sb3_adc.experiment.layout import RunLayout
 from sb3_adc.experiment.plots import plot_learning_curves
 from sb3_adc.experiment.provenance import machine_metadata
@@ -256,4 +256,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

@@ -36,7 +36,7 @@ import torch as th
 from critic_study import CONFIGS, report
 
 from sb3_adc.diagnostics import ARRAY_KEYS, load_history, plot_diagnostics
-from sb3_adc.experiment.benchmark import BenchmarkSettings, run_benchmark
+from sb3_adc.experiment.benchmark import BenchmarkSettings, run_benchmark, run_script
 from sb3_adc.experiment.statistics import final_performance
 
 ROOT = Path(__file__).resolve().parent
@@ -154,4 +154,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

@@ -52,7 +52,15 @@ from rliable import library as rly
 from rliable import metrics
 
 from sb3_adc.config import packaged_hyperparams_file
-from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CSV, BenchmarkSettings, RunOutcome, run_benchmark
+from sb3_adc.experiment.benchmark import (
+    EPISODES_CSV,
+    EVALUATIONS_CSV,
+    FINAL_CSV,
+    BenchmarkSettings,
+    RunOutcome,
+    run_benchmark,
+    run_script,
+)
 from sb3_adc.experiment.plots import plot_results
 from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc.experiment.statistics import CONFIDENCE, time_to_threshold
@@ -538,4 +546,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

@@ -35,7 +35,15 @@ import pandas as pd
 import torch as th
 
 from sb3_adc.config import packaged_hyperparams_file
-from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CSV, BenchmarkSettings, RunOutcome, run_benchmark
+from sb3_adc.experiment.benchmark import (
+    EPISODES_CSV,
+    EVALUATIONS_CSV,
+    FINAL_CSV,
+    BenchmarkSettings,
+    RunOutcome,
+    run_benchmark,
+    run_script,
+)
 from sb3_adc.experiment.plots import plot_results
 from sb3_adc.experiment.provenance import machine_metadata
 
@@ -146,4 +154,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

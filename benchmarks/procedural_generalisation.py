@@ -76,7 +76,15 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from sb3_adc.common.actor_average import ActorAverageTD3Policy
 from sb3_adc.config.experiment_config import ExperimentConfig
 from sb3_adc.config.loader import HyperparamsError, load_hyperparams, read_yaml_file
-from sb3_adc.experiment.benchmark import EVALUATIONS_CSV, FINAL_CSV, BenchmarkSettings, RunOutcome, RunSpec, run_benchmark
+from sb3_adc.experiment.benchmark import (
+    EVALUATIONS_CSV,
+    FINAL_CSV,
+    BenchmarkSettings,
+    RunOutcome,
+    RunSpec,
+    run_benchmark,
+    run_script,
+)
 from sb3_adc.experiment.enjoy import load_model, load_run, model_path
 from sb3_adc.experiment.invocations import INVOCATIONS_JSON, read_invocations
 from sb3_adc.experiment.plots import plot_final_performance, plot_trajectories
@@ -688,4 +696,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 
 from tqdm import tqdm
 
 from sb3_adc.cli.common import CommandError, apply_runtime_arguments, key_values
 from sb3_adc.config import ALGORITHMS, check_env_id
-from sb3_adc.experiment.benchmark import BenchmarkSettings, RunOutcome, run_benchmark
+from sb3_adc.experiment.benchmark import INTERRUPTED, BenchmarkSettings, RunOutcome, run_benchmark
 
 DESCRIPTION = """\
 Train every algorithm on every environment with every seed, one run per process (local backend)
@@ -118,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
         result = run_benchmark(settings, backend=args.backend, workers=args.workers, address=args.address, report=report)
     except KeyboardInterrupt:
         progress.close()
-        print("\nInterrupted: finished runs are kept, running ones saved a checkpoint. Re-run the same command to continue.")
+        print(f"\n{INTERRUPTED}", file=sys.stderr)
         return 130
     finally:
         progress.close()

@@ -21,11 +21,12 @@ import glob
 import multiprocessing
 import os
 import re
+import sys
 import traceback
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NoReturn
 
 import yaml
 
@@ -48,6 +49,7 @@ from sb3_adc.experiment.settings import TrainSettings
 EVALUATIONS_CSV = "evaluations.csv"
 EPISODES_CSV = "episodes.csv"
 FINAL_CSV = "final.csv"
+INTERRUPTED = "Interrupted: finished runs are kept, running ones saved a checkpoint. Re-run the same command to continue."
 
 #: Run settings that do not change a run's results: a run on disk may differ from the grid in them.
 _NEUTRAL_SETTINGS = frozenset({"log_folder", "run_dir", "device", "verbose", "progress_bar", "keep_checkpoints"})
@@ -449,6 +451,22 @@ def run_benchmarks(
         BenchmarkResult(outcomes[folder], write_tables(outcomes[folder], settings.log_folder))
         for settings, folder in zip(grids, folders, strict=True)
     ]
+
+
+def run_script(main: Callable[[], int | None]) -> NoReturn:
+    """
+    Run a benchmark script's ``main`` and exit with its status. Ctrl-C ends the script as it ends
+    ``sb3-adc benchmark``: the runs in progress have saved their checkpoints, so it prints :data:`INTERRUPTED` and
+    exits with status 130 instead of a traceback.
+
+    :param main: The script's entry point (its return value, if any, is the exit status)
+    """
+    try:
+        status = main()
+    except KeyboardInterrupt:
+        print(f"\n{INTERRUPTED}", file=sys.stderr)
+        raise SystemExit(130) from None
+    raise SystemExit(status or 0)
 
 
 def write_tables(outcomes: list[RunOutcome], folder: str) -> dict[str, str]:

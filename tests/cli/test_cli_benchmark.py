@@ -93,3 +93,30 @@ def test_benchmark_errors(cli, tmp_path):
     status, _, err = cli("benchmark", "--algos", "adc", "--envs", "Pendulum-v1", "--n-seeds", 0, "-f", tmp_path)
     assert status == 2
     assert "--n-seeds must be >= 1" in err
+
+
+def test_ctrl_c_ends_the_benchmark_with_status_130_and_the_resume_message(cli, tiny_conf, tmp_path, monkeypatch):
+    from sb3_adc.cli import benchmark_command
+    from sb3_adc.experiment.benchmark import INTERRUPTED
+
+    def ctrl_c(*_, **__):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(benchmark_command, "run_benchmark", ctrl_c)
+    status, _, err = cli(
+        "benchmark",
+        "--algos",
+        "adc",
+        "--envs",
+        "Pendulum-v1",
+        "--seeds",
+        "0",
+        "-f",
+        str(tmp_path / "bench"),
+        "--conf-folder",
+        str(tiny_conf),
+        "-n",
+        "200",
+    )
+    assert status == 130
+    assert INTERRUPTED in err

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import importlib
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -14,37 +14,54 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture
-def grid_settings(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Callable[[str, str, list[str]], list[Any]]:
+def script_main(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> Iterator[Callable[[str, str, Callable[..., Any], list[str]], Any]]:
+    """
+    ``script_main(script, runner, replacement, argv)``: a benchmark script (``benchmarks/{script}.py``) imported
+    with its run and result folders in ``tmp_path``, its ``runner`` (``run_benchmark`` or ``run_benchmarks``)
+    replaced and ``sys.argv`` set to ``argv``; returns the module, whose ``main`` the test calls.
+    """
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    imported: list[str] = []
+
+    def load(script: str, runner: str, replacement: Callable[..., Any], argv: list[str]) -> Any:
+        module = importlib.import_module(script)
+        imported.append(script)
+        monkeypatch.setattr(module, "RUNS_DIR", tmp_path / "runs")
+        monkeypatch.setattr(module, "RESULTS_DIR", tmp_path / "results")
+        monkeypatch.setattr(module, runner, replacement)
+        monkeypatch.setattr(sys, "argv", [f"{script}.py", *argv])
+        return module
+
+    yield load
+    # The scripts import each other (budget_sweep uses procedural_generalisation): forget both.
+    for name in (*imported, "budget_sweep", "procedural_generalisation"):
+        sys.modules.pop(name, None)
+
+
+@pytest.fixture
+def grid_settings(script_main: Callable[..., Any]) -> Callable[[str, str, list[str]], list[Any]]:
     """
     ``grid_settings(script, runner, argv)``: the grid settings a benchmark script (``benchmarks/{script}.py``)
     hands its training engine for ``argv``, stopped before any training: the script's ``runner``
     (``run_benchmark`` or ``run_benchmarks``) is replaced by one that records its settings and stops, and its run
     and result folders point into ``tmp_path``.
     """
-    return lambda script, runner, argv: _grid_settings(tmp_path, monkeypatch, script, runner, argv)
-
-
-def _grid_settings(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, script: str, runner: str, argv: list[str]) -> list[Any]:
-    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
-    module = importlib.import_module(script)
-    monkeypatch.setattr(module, "RUNS_DIR", tmp_path / "runs")
-    monkeypatch.setattr(module, "RESULTS_DIR", tmp_path / "results")
-    recorded: list[Any] = []
 
     class Stop(Exception):
         pass
 
-    def stop(settings: Any, **_: Any) -> None:
-        recorded.extend(settings if isinstance(settings, list) else [settings])
-        raise Stop
+    def settings(script: str, runner: str, argv: list[str]) -> list[Any]:
+        recorded: list[Any] = []
 
-    monkeypatch.setattr(module, runner, stop)
-    monkeypatch.setattr(sys, "argv", [f"{script}.py", *argv])
-    try:
+        def stop(settings: Any, **_: Any) -> None:
+            recorded.extend(settings if isinstance(settings, list) else [settings])
+            raise Stop
+
+        module = script_main(script, runner, stop, argv)
         with pytest.raises(Stop):
             module.main()
-    finally:
-        # The scripts import each other (budget_sweep uses procedural_generalisation): forget both.
-        for name in (script, "budget_sweep", "procedural_generalisation"):
-            sys.modules.pop(name, None)
-    return recorded
+        return recorded
+
+    return settings
