@@ -57,6 +57,7 @@ SIGHTINGS = ["hit_obstacle", "hit_unseen"]
 #: settings (ADC against TD3 with the same sensor, returns, budget and deployed policy).
 AVERAGE_ADC = "LidarObstacleCourse-v1_n_step_150k_sectors_average_validation"
 AVERAGE_TD3 = "LidarObstacleCourse-v1_n_step_td3_150k_sectors_average_validation"
+AVERAGE_ADC_300K = "LidarObstacleCourse-v1_n_step_300k_sectors_average_validation"
 ACTOR_ITSELF = "_actor_itself"
 COMPARISONS = [
     ("LidarObstacleCourse-v1_n_step_150k_sectors_validation", "LidarObstacleCourse-v1_n_step_150k_validation"),
@@ -66,6 +67,8 @@ COMPARISONS = [
     (AVERAGE_TD3 + ACTOR_ITSELF, "LidarObstacleCourse-v1_n_step_td3_150k"),
     (AVERAGE_ADC, AVERAGE_TD3),
     (AVERAGE_ADC + ACTOR_ITSELF, AVERAGE_TD3 + ACTOR_ITSELF),
+    (AVERAGE_ADC_300K, AVERAGE_ADC),
+    (AVERAGE_ADC_300K, AVERAGE_ADC_300K + ACTOR_ITSELF),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
