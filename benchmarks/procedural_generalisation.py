@@ -411,6 +411,12 @@ def score_policy(
     return rows, paths
 
 
+def scored_line(algo: str, seed: int, rows: list[dict[str, Any]]) -> str:
+    """The progress line of a scored run: its success rate on each test set."""
+    rates = ", ".join(f"{row['test_set']} {row['success_rate']:.2f}" for row in rows)
+    return f"{algo} seed {seed}: {rates}"
+
+
 def drop_actor_average(model: BaseAlgorithm) -> bool:
     """
     Make a model that deploys an averaged actor (``actor_average_tau`` of ADC's or TD3's policy) predict with the
@@ -633,8 +639,12 @@ def main() -> None:
         for seed in seeds
     ]
     start = time.perf_counter()
+    scored = []
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        scored = list(pool.map(score_run, *zip(*jobs, strict=True)))
+        results = pool.map(score_run, *zip(*jobs, strict=True))
+        for done, (job, (rows, paths)) in enumerate(zip(jobs, results, strict=True), 1):
+            print(f"scored [{done}/{len(jobs)}] {scored_line(job[1], job[3], rows)}", flush=True)
+            scored.append((rows, paths))
     scoring_s = time.perf_counter() - start
     scores = pd.DataFrame([row for rows, _ in scored for row in rows])
     scores.to_csv(output / "success.csv", index=False)

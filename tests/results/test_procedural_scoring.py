@@ -97,6 +97,9 @@ def test_score_run_reports_each_test_set_of_the_run(scripts, run_dir):
     assert 0.0 <= rows[0]["success_rate"] <= 1.0
     assert len(paths) == 1
     assert set(paths[0]["seed"]) == {3}
+    # The progress line printed as each run is scored names the run and its rate on each test set.
+    line = procedural.scored_line("td3", 3, [*rows, {"test_set": "unseen_posts", "success_rate": 0.25}])
+    assert line == f"td3 seed 3: held-out layouts {rows[0]['success_rate']:.2f}, unseen_posts 0.25"
 
 
 def test_budget_sweep_scores_a_checkpoint_and_names_configs_files(scripts, run_dir, tmp_path):
