@@ -59,6 +59,7 @@ AVERAGE_ADC = "LidarObstacleCourse-v1_n_step_150k_sectors_average_validation"
 AVERAGE_TD3 = "LidarObstacleCourse-v1_n_step_td3_150k_sectors_average_validation"
 AVERAGE_ADC_300K = "LidarObstacleCourse-v1_n_step_300k_sectors_average_validation"
 ACTOR_ITSELF = "_actor_itself"
+BEST = "_best"
 COMPARISONS = [
     ("LidarObstacleCourse-v1_n_step_150k_sectors_validation", "LidarObstacleCourse-v1_n_step_150k_validation"),
     ("LidarObstacleCourse-v1_n_step_150k_sectors_validation_best", "LidarObstacleCourse-v1_n_step_150k_validation_best"),
@@ -69,6 +70,7 @@ COMPARISONS = [
     (AVERAGE_ADC + ACTOR_ITSELF, AVERAGE_TD3 + ACTOR_ITSELF),
     (AVERAGE_ADC_300K, AVERAGE_ADC),
     (AVERAGE_ADC_300K, AVERAGE_ADC_300K + ACTOR_ITSELF),
+    (AVERAGE_ADC_300K, AVERAGE_ADC_300K + BEST),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
