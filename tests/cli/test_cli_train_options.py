@@ -123,6 +123,27 @@ def test_eval_env_kwargs_apply_to_the_evaluation_envs_only(cli, train_args, tmp_
     assert TrainSettings.of_run(str(run_dir)).eval_env_kwargs == {"max_episode_steps": 20}
 
 
+def test_periodic_evaluations_leave_what_is_learned_unchanged(cli, train_args, tmp_path):
+    """
+    A run with periodic evaluations (on other environment settings here) learns the weights of the same run without
+    them, so grids that differ only in their evaluations (a validation split, its episodes) train the same models.
+    """
+    runs = {
+        "none": ["--eval-freq", -1],
+        "validation": ["--eval-episodes", 2, "--eval-env-kwargs", "max_episode_steps:20"],
+    }
+    weights = {}
+    for name, extra in runs.items():
+        status, _, _ = cli(*train_args("adc", tmp_path / name, *extra))
+        assert status == 0
+        run_dir = tmp_path / name / "adc" / "Pendulum-v1_1"
+        assert (run_dir / "evaluations.npz").exists() == (name == "validation")
+        weights[name] = ADC.load(run_dir / "Pendulum-v1.zip", device="cpu").policy.state_dict()
+    assert weights["none"].keys() == weights["validation"].keys()
+    for key, value in weights["none"].items():
+        assert th.equal(value, weights["validation"][key]), key
+
+
 @pytest.mark.parametrize("layout", ["checkpoint", "zoo"])
 def test_trained_agent_continues_with_its_weights_and_replay_buffer(cli, train_args, trained_runs, tmp_path, layout):
     checkpoint = trained_runs["adc"] / "rl_model_300_steps.zip"
