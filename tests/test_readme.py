@@ -38,9 +38,9 @@ def held_out_iqm(folder: str) -> dict[str, str]:
 def test_readme_procedural_figures_are_the_committed_ones():
     """The held-out success rates the README quotes are those of the committed grids it names."""
     readme = " ".join((ROOT / "README.md").read_text().split())
-    shipped = held_out_iqm("LidarObstacleCourse-v1")
-    quoted = ", ".join(f"{shipped[algo]} for {algo.upper()}" for algo in ("adc", "ddpg", "sac"))
-    assert f"is {quoted} and {shipped['td3']} for TD3" in readme
+    first = held_out_iqm("LidarObstacleCourse-v1_first_entries")
+    quoted = ", ".join(f"{first[algo]} for {algo.upper()}" for algo in ("adc", "ddpg", "sac"))
+    assert f"is {quoted} and {first['td3']} for TD3" in readme
     tuned = held_out_iqm("LidarObstacleCourse-v1_shaping_150k")
     assert f"ADC reaches {tuned['adc']} and TD3 {tuned['td3']}" in readme
     rates = held_out_iqm("LidarObstacleCourse-v1_td3_rates_150k")
