@@ -58,6 +58,7 @@ SIGHTINGS = ["hit_obstacle", "hit_unseen"]
 AVERAGE_ADC = "LidarObstacleCourse-v1_n_step_150k_sectors_average_validation"
 AVERAGE_TD3 = "LidarObstacleCourse-v1_n_step_td3_150k_sectors_average_validation"
 AVERAGE_ADC_300K = "LidarObstacleCourse-v1_n_step_300k_sectors_average_validation"
+AVERAGE_TD3_300K = "LidarObstacleCourse-v1_n_step_td3_300k_sectors_average_validation"
 ACTOR_ITSELF = "_actor_itself"
 BEST = "_best"
 COMPARISONS = [
@@ -71,6 +72,10 @@ COMPARISONS = [
     (AVERAGE_ADC_300K, AVERAGE_ADC),
     (AVERAGE_ADC_300K, AVERAGE_ADC_300K + ACTOR_ITSELF),
     (AVERAGE_ADC_300K, AVERAGE_ADC_300K + BEST),
+    (AVERAGE_TD3_300K, AVERAGE_TD3),
+    (AVERAGE_TD3_300K, AVERAGE_TD3_300K + ACTOR_ITSELF),
+    (AVERAGE_ADC_300K, AVERAGE_TD3_300K),
+    (AVERAGE_ADC_300K + ACTOR_ITSELF, AVERAGE_TD3_300K + ACTOR_ITSELF),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
