@@ -214,6 +214,25 @@ def test_committed_best_models_are_those_of_the_scored_grid(folder):
     )
 
 
+def test_the_shipped_td3_entry_of_v1_is_the_measured_configuration(grid_settings):
+    """The shipped TD3 ``-v1`` entry trains what its committed evidence measured: the configuration of
+    ``n_step_td3_300k_sectors_average.yml`` over the frozen starting entry, with the grid's budget."""
+    from sb3_adc.config.loader import load_hyperparams
+
+    env_id = "sb3_adc/LidarObstacleCourse-v1"
+    configs = ROOT / "benchmarks" / "configs" / "procedural_generalisation" / "n_step_td3_300k_sectors_average.yml"
+    settings = _procedural_settings(grid_settings, ["--configs", str(configs), "--validation"])
+    run = settings.train_settings(settings.grid()[0])
+    assert run.algo == "td3"
+    measured = load_hyperparams("td3", env_id, run.conf_file, run.overrides)
+    shipped = load_hyperparams("td3", env_id)
+    assert shipped.source.endswith(f"[{env_id}]")
+    shipped_saved = dict(shipped.saved)
+    assert shipped_saved.pop("n_timesteps") == settings.n_timesteps == 300_000
+    assert shipped_saved == {key: value for key, value in measured.saved.items() if key != "n_timesteps"}
+    assert shipped.env_kwargs == measured.env_kwargs
+
+
 def test_the_shipped_adc_entry_of_v1_is_the_measured_configuration(grid_settings):
     """The shipped ADC ``-v1`` entry trains what its committed evidence measured: the configuration of
     ``n_step_300k_sectors_average.yml`` over the frozen starting entry, the critic design its runs used included."""
