@@ -214,23 +214,32 @@ def test_committed_best_models_are_those_of_the_scored_grid(folder):
     )
 
 
-def test_the_shipped_td3_entry_of_v1_is_the_measured_configuration(grid_settings):
-    """The shipped TD3 ``-v1`` entry trains what its committed evidence measured: the configuration of
-    ``n_step_td3_300k_sectors_average.yml`` over the frozen starting entry, with the grid's budget."""
+def assert_shipped_v1_entry_is_measured(grid_settings, algo: str, configs_name: str, unnamed: tuple[str, ...] = ()):
+    """The shipped ``algo`` ``-v1`` entry equals what the committed grid of ``configs_name`` trained: the frozen
+    starting entry with the file's overrides, the grid's 300,000 steps as its budget. ``unnamed``: keys the shipped
+    entry names and the runs left to their defaults (checked by the caller)."""
     from sb3_adc.config.loader import load_hyperparams
 
     env_id = "sb3_adc/LidarObstacleCourse-v1"
-    configs = ROOT / "benchmarks" / "configs" / "procedural_generalisation" / "n_step_td3_300k_sectors_average.yml"
+    configs = ROOT / "benchmarks" / "configs" / "procedural_generalisation" / configs_name
     settings = _procedural_settings(grid_settings, ["--configs", str(configs), "--validation"])
     run = settings.train_settings(settings.grid()[0])
-    assert run.algo == "td3"
-    measured = load_hyperparams("td3", env_id, run.conf_file, run.overrides)
-    shipped = load_hyperparams("td3", env_id)
+    assert run.algo == algo
+    measured = load_hyperparams(algo, env_id, run.conf_file, run.overrides)
+    shipped = load_hyperparams(algo, env_id)
     assert shipped.source.endswith(f"[{env_id}]")
-    shipped_saved = dict(shipped.saved)
+    shipped_saved = {key: value for key, value in shipped.saved.items() if key not in unnamed}
+    assert all(key not in measured.saved for key in unnamed)
+    # Their budget is the grid's (the file's n_timesteps), not their starting entry's.
     assert shipped_saved.pop("n_timesteps") == settings.n_timesteps == 300_000
     assert shipped_saved == {key: value for key, value in measured.saved.items() if key != "n_timesteps"}
     assert shipped.env_kwargs == measured.env_kwargs
+
+
+def test_the_shipped_td3_entry_of_v1_is_the_measured_configuration(grid_settings):
+    """The shipped TD3 ``-v1`` entry trains what its committed evidence measured:
+    ``n_step_td3_300k_sectors_average.yml`` over the frozen starting entry."""
+    assert_shipped_v1_entry_is_measured(grid_settings, "td3", "n_step_td3_300k_sectors_average.yml")
 
 
 def test_the_shipped_adc_entry_of_v1_is_the_measured_configuration(grid_settings):
@@ -239,18 +248,6 @@ def test_the_shipped_adc_entry_of_v1_is_the_measured_configuration(grid_settings
     from sb3_adc.adc.policies import DEFAULT_CRITIC_DESIGN
     from sb3_adc.config.loader import load_hyperparams
 
-    env_id = "sb3_adc/LidarObstacleCourse-v1"
-    configs = ROOT / "benchmarks" / "configs" / "procedural_generalisation" / "n_step_300k_sectors_average.yml"
-    settings = _procedural_settings(grid_settings, ["--configs", str(configs), "--validation"])
-    run = settings.train_settings(settings.grid()[0])
-    measured = load_hyperparams("adc", env_id, run.conf_file, run.overrides)
-    shipped = load_hyperparams("adc", env_id)
-    assert shipped.source.endswith(f"[{env_id}]")
-    # The runs did not name a design: they were trained with the default, which the shipped entry names. Their
-    # budget is the grid's (the file's n_timesteps), not their starting entry's.
-    shipped_saved = dict(shipped.saved)
-    assert shipped_saved.pop("critic_design") == DEFAULT_CRITIC_DESIGN
-    assert "critic_design" not in measured.saved
-    assert shipped_saved.pop("n_timesteps") == settings.n_timesteps == 300_000
-    assert shipped_saved == {key: value for key, value in measured.saved.items() if key != "n_timesteps"}
-    assert shipped.env_kwargs == measured.env_kwargs
+    # The runs did not name a design: they were trained with the default, which the shipped entry names.
+    assert load_hyperparams("adc", "sb3_adc/LidarObstacleCourse-v1").saved["critic_design"] == DEFAULT_CRITIC_DESIGN
+    assert_shipped_v1_entry_is_measured(grid_settings, "adc", "n_step_300k_sectors_average.yml", ("critic_design",))
