@@ -21,7 +21,8 @@ Training is ``sb3-adc benchmark``'s engine (resumable, one process per run); the
 
 ``--configs FILE`` replaces that entry and ``--gammas`` with the configurations of a YAML file (a mapping of
 configuration name to ``key: value`` overrides of the entry, checked as the engine checks ``-params``); its results
-go to a folder named after the file (``{env}_{algo}_{file stem}``).
+go to a folder named after the file (``{env}_{algo}_{file stem}``), and the sweep ends by naming the configuration
+that the rule of pre-registered sweeps chooses (``winner``: the highest mean success at the last checkpoint).
 
 Every configuration overrides the algorithm's starting entry, the ``-v1`` entry as shipped when the studies began,
 frozen in ``benchmarks/configs/starting_entries/`` (``STARTING_ENTRIES`` of ``procedural_generalisation.py``): a
@@ -41,7 +42,9 @@ import argparse
 import json
 import time
 from collections import Counter
+from collections.abc import Mapping
 from concurrent.futures import ProcessPoolExecutor
+from fractions import Fraction
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -116,6 +119,36 @@ def score_checkpoint(
         rows.append(row(f"{config} (actor itself)"))
     env.close()
     return rows
+
+
+def checkpoint_line(rows: list[dict[str, Any]]) -> str:
+    """Progress: one scored checkpoint, its run and its success rate (and its actor's, when it deploys an average)."""
+    first = rows[0]
+    rates = ", ".join(f"{row['config']} {row['success_rate']:.2f}" for row in rows)
+    return f"seed {first['seed']} at {first['timesteps']} steps: {rates}"
+
+
+def winner(sweep: pd.DataFrame, configs: Mapping[str, Mapping[str, Any]]) -> str:
+    """
+    The configuration a pre-registered sweep chooses (the rule written down before DDPG's and SAC's sweeps ran,
+    ``docs/results/critic_study.rst``): the highest mean validation success across runs at the last checkpoint, of
+    each configuration as deployed (an averaged actor, not its ``"(actor itself)"`` rows); on a tie, the one with the
+    longer returns (``n_steps``, 1 when unnamed). Success is compared as counts over equal episodes, so a tie is exact.
+
+    :param sweep: The sweep's ``sweep.csv``
+    :param configs: The sweep's configurations (name -> overrides), those of its ``--configs`` file
+    """
+    final = sweep[(sweep["timesteps"] == sweep["timesteps"].max()) & sweep["config"].isin(list(configs))]
+    totals = final.groupby("config")[["successes", "episodes"]].sum()
+    if set(totals.index) != set(configs):
+        raise ValueError(f"the sweep has no final checkpoint of {sorted(set(configs) - set(totals.index))}")
+    return max(
+        configs,
+        key=lambda name: (
+            Fraction(int(totals.loc[name, "successes"]), int(totals.loc[name, "episodes"])),
+            int(configs[name].get("n_steps", 1)),
+        ),
+    )
 
 
 def summarise(sweep: pd.DataFrame, reps: int) -> pd.DataFrame:
@@ -220,8 +253,12 @@ def main() -> None:
             jobs += [(run_dir, config, seed, point.timesteps, point.model, n_layouts) for point in checkpoints]
     training = training_record(output, statuses, time.perf_counter() - start, args.workers, runs_folder=RUNS_DIR / name)
     start = time.perf_counter()
+    scored: list[dict[str, Any]] = []
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        sweep = pd.DataFrame([row for rows in pool.map(score_checkpoint, *zip(*jobs, strict=True)) for row in rows])
+        for done, rows in enumerate(pool.map(score_checkpoint, *zip(*jobs, strict=True)), 1):
+            print(f"scored [{done}/{len(jobs)}] {checkpoint_line(rows)}", flush=True)
+            scored += rows
+    sweep = pd.DataFrame(scored)
     scoring_s = round(time.perf_counter() - start, 1)
     sweep.to_csv(output / "sweep.csv", index=False)
     curves = summarise(sweep, reps)
@@ -253,6 +290,8 @@ def main() -> None:
     }
     (output / "metadata.json").write_text(json.dumps(metadata, indent=2) + "\n")
     print(markdown(curves))
+    if file_configs:
+        print(f"chosen by the sweep's rule (budget_sweep.winner): {winner(sweep, configs)}")
 
 
 if __name__ == "__main__":

@@ -107,10 +107,46 @@ def test_budget_sweep_scores_a_checkpoint_and_names_configs_files(scripts, run_d
     point = RunLayout(run_dir, ENV_ID).checkpoints()[0]
     (row,) = budget_sweep.score_checkpoint(run_dir, "tiny", 3, point.timesteps, point.model, 2)
     assert (row["config"], row["algo"], row["timesteps"], row["episodes"]) == ("tiny", "td3", point.timesteps, 2)
+    # The progress line printed as each checkpoint is scored names the run, the checkpoint and its rate.
+    line = budget_sweep.checkpoint_line([row, {**row, "config": "tiny (actor itself)", "success_rate": 0.25}])
+    assert line == f"seed 3 at {point.timesteps} steps: tiny {row['success_rate']:.2f}, tiny (actor itself) 0.25"
     inside = ROOT / "benchmarks" / "configs" / "budget_sweep" / "shaping.yml"
     assert procedural.repository_path(str(inside)) == "benchmarks/configs/budget_sweep/shaping.yml"
     outside = tmp_path / "configs.yml"
     assert procedural.repository_path(str(outside)) == str(outside.resolve())
+
+
+def sweep_rows(config: str, successes_by_checkpoint: dict[int, list[int]], episodes: int = 50) -> list[dict]:
+    """``sweep.csv`` rows of one configuration: per checkpoint, one run per entry of its successes."""
+    return [
+        {"config": config, "seed": seed, "timesteps": steps, "episodes": episodes, "successes": hits,
+         "success_rate": hits / episodes}
+        for steps, successes in successes_by_checkpoint.items()
+        for seed, hits in enumerate(successes)
+    ]  # fmt: skip
+
+
+def test_the_sweep_rule_chooses_the_best_mean_at_the_last_checkpoint_as_deployed(scripts):
+    _, budget_sweep = scripts
+    configs = {"one-step": {"gamma": 0.98}, "3-step": {"gamma": 0.98, "n_steps": 3}}
+    rows = [
+        # Ahead earlier in training, behind at the last checkpoint.
+        *sweep_rows("one-step", {15_000: [50, 50], 150_000: [45, 44]}),
+        *sweep_rows("3-step", {15_000: [10, 10], 150_000: [46, 44]}),
+        # An actor itself that would win is not a deployed policy.
+        *sweep_rows("one-step (actor itself)", {15_000: [0, 0], 150_000: [50, 50]}),
+    ]
+    assert budget_sweep.winner(pd.DataFrame(rows), configs) == "3-step"
+    behind = [row for row in rows if not (row["config"] == "3-step" and row["timesteps"] == 150_000)]
+    behind += sweep_rows("3-step", {150_000: [44, 44]})
+    assert budget_sweep.winner(pd.DataFrame(behind), configs) == "one-step"
+    # An exact tie (89 of 100 each, in other splits between the runs) goes to the longer returns, in either order.
+    tie = [row for row in behind if not (row["config"] == "3-step" and row["timesteps"] == 150_000)]
+    tie += sweep_rows("3-step", {150_000: [43, 46]})
+    assert budget_sweep.winner(pd.DataFrame(tie), configs) == "3-step"
+    assert budget_sweep.winner(pd.DataFrame(tie), dict(reversed(configs.items()))) == "3-step"
+    with pytest.raises(ValueError, match=r"no final checkpoint of \['4 rays'\]"):
+        budget_sweep.winner(pd.DataFrame(tie), {**configs, "4 rays": {}})
 
 
 @pytest.fixture(scope="module")
