@@ -18,7 +18,7 @@ ENV_IDS = [
 #: The entries that hold a configuration measured on the procedural course instead of the -v0 entry's.
 MEASURED_V1 = {
     (algo, env_id)
-    for algo in ("adc", "td3")
+    for algo in ("adc", "ddpg", "td3")
     for env_id in ("sb3_adc/LidarObstacleCourse-v1", "sb3_adc/LidarObstacleCourseNoisy-v1")
 }
 
@@ -31,7 +31,7 @@ def test_entries_load_and_build_a_model(algo, env_id):
     kwargs = dict(config.model_kwargs)
     assert kwargs["policy_kwargs"]["net_arch"]["pi"] == [100, 20]  # the paper's actor
     assert kwargs["tau"] == 0.01
-    # ADC's and TD3's -v1 entries hold the configurations measured on -v1 (tests/results/test_procedural_results.py).
+    # ADC's, DDPG's and TD3's -v1 entries hold the configurations measured on -v1 (tests/results/test_procedural_results.py).
     assert kwargs["gamma"] == (0.98 if (algo, env_id) in MEASURED_V1 else 0.9)
     env = gym.make(env_id, **config.env_kwargs)
     policy = kwargs.pop("policy")
@@ -62,7 +62,7 @@ def test_the_paper_files_hold_table_2(algo):
     assert {key: kwargs["policy_kwargs"][key] for key in critic} == critic
 
 
-@pytest.mark.parametrize("algo", ["ddpg", "sac", "dqn", "vanilla_ac"])
+@pytest.mark.parametrize("algo", ["sac", "dqn", "vanilla_ac"])
 @pytest.mark.parametrize("noisy", ["", "Noisy"])
 def test_v1_entries_start_from_the_v0_entries(algo, noisy):
     v0 = load_hyperparams(algo, f"sb3_adc/LidarObstacleCourse{noisy}-v0")
@@ -74,7 +74,7 @@ def test_v1_entries_start_from_the_v0_entries(algo, noisy):
     assert "course" not in v1.env_kwargs
 
 
-@pytest.mark.parametrize("algo", ["adc", "td3"])
+@pytest.mark.parametrize("algo", ["adc", "ddpg", "td3"])
 def test_the_measured_noisy_v1_entries_are_their_clean_v1_entries(algo):
     clean = load_hyperparams(algo, "sb3_adc/LidarObstacleCourse-v1")
     noisy = load_hyperparams(algo, "sb3_adc/LidarObstacleCourseNoisy-v1")

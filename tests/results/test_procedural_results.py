@@ -214,26 +214,67 @@ def test_committed_best_models_are_those_of_the_scored_grid(folder):
     )
 
 
-def assert_shipped_v1_entry_is_measured(grid_settings, algo: str, configs_name: str, unnamed: tuple[str, ...] = ()):
-    """The shipped ``algo`` ``-v1`` entry equals what the committed grid of ``configs_name`` trained: the frozen
-    starting entry with the file's overrides, the grid's 300,000 steps as its budget. ``unnamed``: keys the shipped
-    entry names and the runs left to their defaults (checked by the caller)."""
+def assert_shipped_v1_entry_is(algo: str, measured, unnamed: tuple[str, ...] = ()) -> None:
+    """The shipped ``algo`` ``-v1`` entry is the ``measured`` configuration with 300,000 steps, the budget of every
+    shipped ``-v1`` entry. ``unnamed``: keys the shipped entry names and the runs left to their defaults (checked by
+    the caller)."""
     from sb3_adc.config.loader import load_hyperparams
 
     env_id = "sb3_adc/LidarObstacleCourse-v1"
-    configs = ROOT / "benchmarks" / "configs" / "procedural_generalisation" / configs_name
-    settings = _procedural_settings(grid_settings, ["--configs", str(configs), "--validation"])
-    run = settings.train_settings(settings.grid()[0])
-    assert run.algo == algo
-    measured = load_hyperparams(algo, env_id, run.conf_file, run.overrides)
     shipped = load_hyperparams(algo, env_id)
     assert shipped.source.endswith(f"[{env_id}]")
     shipped_saved = {key: value for key, value in shipped.saved.items() if key not in unnamed}
     assert all(key not in measured.saved for key in unnamed)
-    # Their budget is the grid's (the file's n_timesteps), not their starting entry's.
-    assert shipped_saved.pop("n_timesteps") == settings.n_timesteps == 300_000
+    assert shipped_saved.pop("n_timesteps") == 300_000
     assert shipped_saved == {key: value for key, value in measured.saved.items() if key != "n_timesteps"}
     assert shipped.env_kwargs == measured.env_kwargs
+
+
+def assert_shipped_v1_entry_is_measured(grid_settings, algo: str, configs_name: str, unnamed: tuple[str, ...] = ()):
+    """The shipped ``algo`` ``-v1`` entry equals what the committed grid of ``configs_name`` trained: the frozen
+    starting entry with the file's overrides, the grid's 300,000 steps as its budget. ``unnamed``: as
+    :func:`assert_shipped_v1_entry_is`."""
+    from sb3_adc.config.loader import load_hyperparams
+
+    configs = ROOT / "benchmarks" / "configs" / "procedural_generalisation" / configs_name
+    settings = _procedural_settings(grid_settings, ["--configs", str(configs), "--validation"])
+    run = settings.train_settings(settings.grid()[0])
+    assert run.algo == algo
+    # Their budget is the grid's (the file's n_timesteps), not their starting entry's.
+    assert settings.n_timesteps == 300_000
+    measured = load_hyperparams(algo, "sb3_adc/LidarObstacleCourse-v1", run.conf_file, run.overrides)
+    assert_shipped_v1_entry_is(algo, measured, unnamed)
+
+
+#: The algorithms whose ``-v1`` entries a pre-registered sweep on the tuning seeds chose, with its configs file
+#: (``benchmarks/configs/budget_sweep/``); the rule is ``budget_sweep.winner``.
+SWEEP_CHOSEN = {"ddpg": "ddpg_actor_average_150k"}
+
+
+@pytest.mark.parametrize("algo", sorted(SWEEP_CHOSEN))
+def test_the_shipped_v1_entry_is_what_its_pre_registered_sweep_chose(algo, monkeypatch):
+    """The shipped ``-v1`` entry of an algorithm chosen by a sweep is the configuration the rule picks from the
+    committed sweep (its configs file over the frozen starting entry), with the 300,000 steps every entry ships."""
+    import importlib
+    import sys
+
+    from sb3_adc.config.loader import load_hyperparams
+
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    monkeypatch.delitem(sys.modules, "budget_sweep", raising=False)
+    monkeypatch.delitem(sys.modules, "procedural_generalisation", raising=False)
+    budget_sweep = importlib.import_module("budget_sweep")
+    name = SWEEP_CHOSEN[algo]
+    configs = budget_sweep.read_configs(str(ROOT / "benchmarks" / "configs" / "budget_sweep" / f"{name}.yml"))
+    results = ROOT / "benchmarks" / "results" / "budget_sweep" / f"LidarObstacleCourse-v1_{algo}_{name}"
+    metadata = json.loads((results / "metadata.json").read_text())
+    # The committed sweep is this file's, on the tuning seeds, at the budget the rule names.
+    assert (metadata["algo"], metadata["configs_file"]) == (algo, f"benchmarks/configs/budget_sweep/{name}.yml")
+    assert json.loads(json.dumps(configs)) == metadata["configs"]
+    assert (metadata["seeds"], metadata["n_timesteps"]) == ([0, 1, 2, 3, 4], 150_000)
+    chosen = budget_sweep.winner(pd.read_csv(results / "sweep.csv"), configs)
+    starting = str(budget_sweep.STARTING_ENTRIES / f"{algo}.yml")
+    assert_shipped_v1_entry_is(algo, load_hyperparams(algo, "sb3_adc/LidarObstacleCourse-v1", starting, configs[chosen]))
 
 
 def test_the_shipped_td3_entry_of_v1_is_the_measured_configuration(grid_settings):
