@@ -17,6 +17,8 @@ RESULTS = ROOT / "benchmarks" / "results" / "procedural_generalisation"
 FOLDERS = sorted(path.parent for path in RESULTS.glob("*/trajectories.csv.gz"))
 #: Steps of an episode that ends without a collision (the environment's time limit).
 EPISODE_STEPS = 500
+#: The environment whose shipped entries the studies measured.
+V1 = "sb3_adc/LidarObstacleCourse-v1"
 
 
 @pytest.mark.skipif(not FOLDERS, reason="no committed trajectories")
@@ -146,11 +148,10 @@ def test_configs_files_override_the_frozen_starting_entries_not_the_shipped_ones
 
     from sb3_adc.config import loader
 
-    env_id = "sb3_adc/LidarObstacleCourse-v1"
     starting = ROOT / "benchmarks" / "configs" / "starting_entries"
     # The shipped entry changes after the studies began: a batch size and a sensor of its own.
     shipped = loader.read_hyperparams_file(loader.packaged_hyperparams_file("td3"))
-    shipped[env_id] = {**shipped[env_id], "batch_size": 512, "env_kwargs": {"rays_per_reading": 4}}
+    shipped[V1] = {**shipped[V1], "batch_size": 512, "env_kwargs": {"rays_per_reading": 4}}
     changed = tmp_path / "td3.yml"
     changed.write_text(yaml.safe_dump(shipped))
     packaged = loader.packaged_hyperparams_file
@@ -158,7 +159,7 @@ def test_configs_files_override_the_frozen_starting_entries_not_the_shipped_ones
 
     def resolved(settings):
         run = settings.train_settings(settings.grid()[0])
-        return loader.load_hyperparams("td3", env_id, run.conf_file, run.overrides)
+        return loader.load_hyperparams("td3", V1, run.conf_file, run.overrides)
 
     configs = tmp_path / "configs.yml"
     configs.write_text("td3: {gamma: 0.96}\n")
@@ -220,9 +221,8 @@ def assert_shipped_v1_entry_is(algo: str, measured, unnamed: tuple[str, ...] = (
     the caller)."""
     from sb3_adc.config.loader import load_hyperparams
 
-    env_id = "sb3_adc/LidarObstacleCourse-v1"
-    shipped = load_hyperparams(algo, env_id)
-    assert shipped.source.endswith(f"[{env_id}]")
+    shipped = load_hyperparams(algo, V1)
+    assert shipped.source.endswith(f"[{V1}]")
     shipped_saved = {key: value for key, value in shipped.saved.items() if key not in unnamed}
     assert all(key not in measured.saved for key in unnamed)
     assert shipped_saved.pop("n_timesteps") == 300_000
@@ -242,7 +242,7 @@ def assert_shipped_v1_entry_is_measured(grid_settings, algo: str, configs_name: 
     assert run.algo == algo
     # Their budget is the grid's (the file's n_timesteps), not their starting entry's.
     assert settings.n_timesteps == 300_000
-    measured = load_hyperparams(algo, "sb3_adc/LidarObstacleCourse-v1", run.conf_file, run.overrides)
+    measured = load_hyperparams(algo, V1, run.conf_file, run.overrides)
     assert_shipped_v1_entry_is(algo, measured, unnamed)
 
 
@@ -274,7 +274,7 @@ def test_the_shipped_v1_entry_is_what_its_pre_registered_sweep_chose(algo, monke
     assert (metadata["seeds"], metadata["n_timesteps"]) == ([0, 1, 2, 3, 4], 150_000)
     chosen = budget_sweep.winner(pd.read_csv(results / "sweep.csv"), configs)
     starting = str(budget_sweep.STARTING_ENTRIES / f"{algo}.yml")
-    assert_shipped_v1_entry_is(algo, load_hyperparams(algo, "sb3_adc/LidarObstacleCourse-v1", starting, configs[chosen]))
+    assert_shipped_v1_entry_is(algo, load_hyperparams(algo, V1, starting, configs[chosen]))
 
 
 def test_the_shipped_td3_entry_of_v1_is_the_measured_configuration(grid_settings):
@@ -290,5 +290,5 @@ def test_the_shipped_adc_entry_of_v1_is_the_measured_configuration(grid_settings
     from sb3_adc.config.loader import load_hyperparams
 
     # The runs did not name a design: they were trained with the default, which the shipped entry names.
-    assert load_hyperparams("adc", "sb3_adc/LidarObstacleCourse-v1").saved["critic_design"] == DEFAULT_CRITIC_DESIGN
+    assert load_hyperparams("adc", V1).saved["critic_design"] == DEFAULT_CRITIC_DESIGN
     assert_shipped_v1_entry_is_measured(grid_settings, "adc", "n_step_300k_sectors_average.yml", ("critic_design",))
