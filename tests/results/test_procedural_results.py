@@ -248,7 +248,7 @@ def assert_shipped_v1_entry_is_measured(grid_settings, algo: str, configs_name: 
 
 #: The algorithms whose ``-v1`` entries a pre-registered sweep on the tuning seeds chose, with its configs file
 #: (``benchmarks/configs/budget_sweep/``); the rule is ``budget_sweep.winner``.
-SWEEP_CHOSEN = {"ddpg": "ddpg_actor_average_150k"}
+SWEEP_CHOSEN = {"ddpg": "ddpg_actor_average_150k", "sac": "sac_sectors_150k"}
 
 
 @pytest.mark.parametrize("algo", sorted(SWEEP_CHOSEN))
