@@ -33,7 +33,13 @@ def test_entries_load_and_build_a_model(algo, env_id):
     assert kwargs["tau"] == 0.01
     # ADC's, DDPG's and TD3's -v1 entries hold the configurations measured on -v1 (tests/results/test_procedural_results.py).
     assert kwargs["gamma"] == (0.98 if (algo, env_id) in MEASURED_V1 else 0.9)
+    train_briefly(config, env_id)
+
+
+def train_briefly(config, env_id: str, **overrides) -> None:
+    """Build the entry's model on its environment and train it for 50 steps (``overrides``: of its keywords)."""
     env = gym.make(env_id, **config.env_kwargs)
+    kwargs = {**config.model_kwargs, **overrides}
     policy = kwargs.pop("policy")
     model = config.algorithm_class(policy, env, action_noise=config.make_action_noise(env.action_space), seed=0, **kwargs)
     model.learn(50)
@@ -46,13 +52,8 @@ def test_the_measured_sac_entries_load_and_build_a_model(env_id):
     pre-registered sweep in tests/results/test_procedural_results.py."""
     config = load_hyperparams("sac", env_id)
     assert config.source.endswith(f"[{env_id}]")
-    kwargs = dict(config.model_kwargs)
-    assert kwargs["gamma"] == 0.98
-    env = gym.make(env_id, **config.env_kwargs)
-    policy = kwargs.pop("policy")
-    model = config.algorithm_class(policy, env, seed=0, **{**kwargs, "learning_starts": 10})
-    model.learn(50)
-    env.close()
+    assert config.model_kwargs["gamma"] == 0.98
+    train_briefly(config, env_id, learning_starts=10)  # its warm-up is 10,000 steps: train within the 50
 
 
 def test_adc_entry_uses_the_paper_dueling_critic():
