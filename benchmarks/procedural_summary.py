@@ -52,6 +52,9 @@ HITS = [f"hit_{kind}" for kind in HIT_KINDS]
 #: Of the failed episodes, those that ended against an obstacle and those whose obstacle the lidar did not show in
 #: time (``procedural_generalisation.SIGHTING``); empty for grids scored before the scoring recorded it.
 SIGHTINGS = ["hit_obstacle", "hit_unseen"]
+#: A side of a comparison: a grid's folder name (a grid of one algorithm), or (folder name, algorithm): the runs of
+#: one algorithm of a grid of several (the four shipped entries in one grid).
+Side = str | tuple[str, str]
 #: Pairs of grids to compare run against run: (changed, control), one algorithm each, the same seeds and test sets,
 #: and one change between them: a setting or the deployed policy of one algorithm, or the algorithm given the same
 #: settings (ADC against TD3 with the same sensor, returns, budget and deployed policy).
@@ -61,7 +64,7 @@ AVERAGE_ADC_300K = "LidarObstacleCourse-v1_n_step_300k_sectors_average_validatio
 AVERAGE_TD3_300K = "LidarObstacleCourse-v1_n_step_td3_300k_sectors_average_validation"
 ACTOR_ITSELF = "_actor_itself"
 BEST = "_best"
-COMPARISONS = [
+COMPARISONS: list[tuple[Side, Side]] = [
     ("LidarObstacleCourse-v1_n_step_150k_sectors_validation", "LidarObstacleCourse-v1_n_step_150k_validation"),
     ("LidarObstacleCourse-v1_n_step_150k_sectors_validation_best", "LidarObstacleCourse-v1_n_step_150k_validation_best"),
     (AVERAGE_ADC, AVERAGE_ADC + ACTOR_ITSELF),
@@ -197,9 +200,29 @@ def planner_rows(results: Path) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
-def run_rates(folder: Path) -> pd.DataFrame:
-    """:func:`success_rates_per_run` of a grid's folder."""
-    return success_rates_per_run(pd.read_csv(folder / "success.csv"))
+def side_name(side: Side) -> str:
+    """The side as ``comparisons.csv`` names it: the grid, and the algorithm where the side picks one."""
+    return side if isinstance(side, str) else f"{side[0]} ({display_name(side[1])})"
+
+
+def side_rates(results: Path, side: Side) -> pd.DataFrame | None:
+    """
+    :func:`success_rates_per_run` of the side's runs, or ``None`` where its grid is not committed or holds no run of
+    its algorithm (a grid scored for some of its algorithms so far).
+
+    :raises ValueError: A side named by its grid alone whose grid holds several algorithms
+    """
+    grid, algo = (side, None) if isinstance(side, str) else side
+    if not (results / grid / "success.csv").exists():
+        return None
+    rates = success_rates_per_run(pd.read_csv(results / grid / "success.csv"))
+    if algo is None:
+        algos = sorted(set(rates["algo"]))
+        if len(algos) > 1:
+            raise ValueError(f"comparison side {grid!r} holds {', '.join(algos)}: name one, as ({grid!r}, algo)")
+        return rates
+    rates = rates[rates["algo"] == algo]
+    return None if rates.empty else rates
 
 
 def success_rates_per_run(success: pd.DataFrame) -> pd.DataFrame:
@@ -216,27 +239,26 @@ def success_rates_per_run(success: pd.DataFrame) -> pd.DataFrame:
     return rates.rename(columns={"success_rate": "mean_return"})
 
 
-def compare(results: Path, pairs: list[tuple[str, str]], reps: int) -> pd.DataFrame:
+def compare(results: Path, pairs: list[tuple[Side, Side]], reps: int) -> pd.DataFrame:
     """
-    For each pair of committed grids (changed, control), per test set of :func:`run_rates`: the mean success of
-    each grid's runs and the probability that a run of the changed grid beats one of the control (ties count one
-    half), with its 95% CI. Pairs whose grids are not both committed are left out.
+    For each pair of committed grids (changed, control), per test set of :func:`success_rates_per_run`: the mean
+    success of each side's runs and the probability that a run of the changed side beats one of the control (ties
+    count one half), with its 95% CI. Pairs whose sides are not both committed (:func:`side_rates`) are left out.
     """
     rows = []
     for changed, control in pairs:
-        if not ((results / changed / "success.csv").exists() and (results / control / "success.csv").exists()):
+        changed_rates, control_rates = side_rates(results, changed), side_rates(results, control)
+        if changed_rates is None or control_rates is None:
             continue
-        rates = pd.concat(
-            [run_rates(results / changed).assign(algo="changed"), run_rates(results / control).assign(algo="control")]
-        )
+        rates = pd.concat([changed_rates.assign(algo="changed"), control_rates.assign(algo="control")])
         for test_set in (HELD_OUT, COURSE_FILES, POSTS):
             table = rates[rates["env"] == test_set]
             improvement = probability_of_improvement(table, reps=reps).iloc[0]
             means = table.groupby("algo")["mean_return"].mean()
             rows.append(
                 {
-                    "changed": changed,
-                    "control": control,
+                    "changed": side_name(changed),
+                    "control": side_name(control),
                     "test_set": test_set,
                     "changed_mean": float(means["changed"]),
                     "control_mean": float(means["control"]),

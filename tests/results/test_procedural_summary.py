@@ -90,12 +90,12 @@ def test_failures_sum_the_hits_and_leave_unrecorded_grids_empty(summary_module):
     assert all(np.isnan(older[hit]) for hit in (*summary_module.HITS, *summary_module.SIGHTINGS))
 
 
-def grid_success(rates: dict[str, list[float]]) -> pd.DataFrame:
-    """A grid's ``success.csv``: ADC runs (seeds 0, 1, ...) with these success rates per test set (10 episodes each)."""
+def grid_success(rates: dict[str, list[float]], algo: str = "adc") -> pd.DataFrame:
+    """A grid's ``success.csv``: runs (seeds 0, 1, ...) with these success rates per test set (10 episodes each)."""
     rows = []
     for test_set, per_run in rates.items():
         for seed, rate in enumerate(per_run):
-            rows.append(("adc", seed, test_set, 10, round(10 * rate), rate))
+            rows.append((algo, seed, test_set, 10, round(10 * rate), rate))
     return pd.DataFrame(rows, columns=["algo", "seed", "test_set", "episodes", "successes", "success_rate"])
 
 
@@ -120,3 +120,30 @@ def test_comparisons_set_the_runs_of_two_grids_against_each_other(summary_module
     assert rows.loc[summary_module.COURSE_FILES, "control_mean"] == pytest.approx(0.5)
     assert "P(changed > control)" in summary_module.comparisons_markdown(table)
     assert summary_module.comparisons_markdown(table.iloc[:0]) == ""
+
+
+def test_a_comparison_side_picks_one_algorithm_of_a_grid_of_several(summary_module, tmp_path):
+    control = {"held-out layouts": [0.5, 0.5], "unseen_posts": [0.5, 0.5]}
+    (tmp_path / "control").mkdir()
+    grid_success(control).to_csv(tmp_path / "control" / "success.csv", index=False)
+    # A grid of two algorithms: ADC's runs better than the control's on the held-out layouts, TD3's worse.
+    (tmp_path / "shipped").mkdir()
+    shipped = pd.concat(
+        [
+            grid_success({"held-out layouts": [0.9, 0.8], "unseen_posts": [0.5, 0.5]}, "adc"),
+            grid_success({"held-out layouts": [0.1, 0.2], "unseen_posts": [0.5, 0.5]}, "td3"),
+        ]
+    )
+    shipped.to_csv(tmp_path / "shipped" / "success.csv", index=False)
+    pairs = [(("shipped", "adc"), "control"), (("shipped", "td3"), "control"), (("shipped", "sac"), "control")]
+    table = summary_module.compare(tmp_path, pairs, reps=200)
+    # SAC is not scored in the grid (yet): its pair is left out, as a grid not committed is.
+    assert list(dict.fromkeys(table["changed"])) == ["shipped (ADC)", "shipped (TD3)"]
+    held_out = table[table["test_set"] == "held-out layouts"].set_index("changed")
+    assert held_out.loc["shipped (ADC)", "changed_mean"] == pytest.approx(0.85)
+    assert held_out.loc["shipped (ADC)", "probability"] == 1.0
+    assert held_out.loc["shipped (TD3)", "probability"] == 0.0
+    assert set(table["control"]) == {"control"}
+    # Named by its grid alone, a grid of several algorithms would pool them: refused, naming the way to pick one.
+    with pytest.raises(ValueError, match=r"'shipped' holds adc, td3: name one, as \('shipped', algo\)"):
+        summary_module.compare(tmp_path, [("shipped", "control")], reps=200)
