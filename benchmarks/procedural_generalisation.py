@@ -71,6 +71,7 @@ import gymnasium as gym
 import numpy as np
 import pandas as pd
 import torch as th
+import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 
 from sb3_adc.common.actor_average import ActorAverageTD3Policy
@@ -496,6 +497,38 @@ def robot_overrides(
     return {**overrides, "env_kwargs": {**env_kwargs, "robot": robot}}
 
 
+def trained_entry(
+    algo: str, env_id: str, conf_file: str | None, overrides: dict[str, Any], n_timesteps: int | None
+) -> dict[str, Any]:
+    """
+    The hyperparameters a grid's runs of ``algo`` train with, as plain data (what each run's ``config.yml`` holds):
+    the entry of ``conf_file`` (``None``: the shipped one) with ``overrides`` and the budget ``n_timesteps``
+    (``None``: the entry's). Recorded as ``entries`` in the grid's ``metadata.json`` (:func:`stale_entries`).
+    """
+    resolved = load_hyperparams(algo, env_id, conf_file, overrides, n_timesteps)
+    return yaml.safe_load(yaml.safe_dump(resolved.saved))
+
+
+def stale_entries(metadata: dict[str, Any]) -> list[str]:
+    """
+    The algorithms of a scored grid whose recorded ``entries`` differ from what the grid's command trains today: an
+    entry (shipped, or a starting entry of ``--configs``) changed after the grid ran, so its numbers are no longer
+    what the command reproduces. Grids scored before ``entries`` was recorded have none to check.
+
+    :param metadata: The grid's ``metadata.json``
+    """
+    configs = metadata.get("configs")
+    budgets = metadata["n_timesteps"] if isinstance(metadata["n_timesteps"], dict) else {}
+    stale = []
+    for algo, recorded in metadata.get("entries", {}).items():
+        conf_file = starting_entry(algo) if configs is not None else None
+        overrides = robot_overrides(algo, metadata["env"], metadata["robot"], (configs or {}).get(algo), conf_file)
+        budget = budgets.get(algo)
+        if trained_entry(algo, metadata["env"], conf_file, overrides, budget if isinstance(budget, int) else None) != recorded:
+            stale.append(algo)
+    return stale
+
+
 def as_scores(scores: pd.DataFrame) -> pd.DataFrame:
     """The success rates in the statistics' layout: each test set as an ``env``, each rate as a ``mean_return``."""
     return scores.drop(columns="env").rename(columns={"test_set": "env", "success_rate": "mean_return"})
@@ -591,10 +624,13 @@ def main() -> None:
     output.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     finals, evaluations, statuses = [], [], Counter[str]()
+    entries: dict[str, dict[str, Any]] = {}
     conf_folder = str(STARTING_ENTRIES) if args.configs else None
     for algo in args.algos:
         conf_file = starting_entry(algo) if args.configs else None
         overrides = robot_overrides(algo, args.env, args.robot, configs[algo], conf_file)
+        # What the runs train with (the engine refuses runs on disk made with anything else: RunSettingsMismatch).
+        entries[algo] = trained_entry(algo, args.env, conf_file, overrides, budgets[algo])
         budget = budgets[algo] or load_hyperparams(algo, args.env, conf_file, overrides).n_timesteps
         settings = BenchmarkSettings(
             algos=[algo],
@@ -686,6 +722,7 @@ def main() -> None:
             else "shipped (hyperparams/{algo}.yml)"
         ),
         **({"configs": configs} if args.configs else {}),
+        "entries": entries,
         "model": VALIDATION_BEST if args.validation and args.model == "best" else MODELS[args.model],
         **({"validation": periodic_evaluations(True, 0)} if args.validation else {}),
         **({"actor_itself": True} if args.actor_itself else {}),

@@ -292,3 +292,78 @@ def test_the_shipped_adc_entry_of_v1_is_the_measured_configuration(grid_settings
     # The runs did not name a design: they were trained with the default, which the shipped entry names.
     assert load_hyperparams("adc", V1).saved["critic_design"] == DEFAULT_CRITIC_DESIGN
     assert_shipped_v1_entry_is_measured(grid_settings, "adc", "n_step_300k_sectors_average.yml", ("critic_design",))
+
+
+@pytest.mark.parametrize(("robot", "configs"), [("kinematic", False), ("wheeled", False), ("wheeled", True)])
+def test_recorded_entries_are_what_the_engine_trains_and_go_stale_when_an_entry_changes(
+    tmp_path, monkeypatch, script_main, robot, configs
+):
+    """``entries`` of a grid's ``metadata.json`` are the hyperparameters the engine resolves for the grid's runs (what
+    their ``config.yml`` holds); once the entry they came from changes, ``stale_entries`` names the algorithm."""
+    import shutil
+
+    import yaml
+
+    from sb3_adc.config import loader
+
+    class Stop(Exception):
+        pass
+
+    captured = []
+
+    def stop(settings, **_):
+        captured.append(settings)
+        raise Stop
+
+    metadata = {"env": V1, "robot": robot, "n_timesteps": "each entry's n_timesteps"}
+    argv = ["--algos", "td3", "--robot", robot]
+    if configs:
+        path = tmp_path / "configs.yml"
+        path.write_text("td3: {gamma: 0.96, n_timesteps: 1000}\n")
+        argv = ["--configs", str(path), *argv]
+        metadata |= {"configs": {"td3": {"gamma": 0.96}}, "n_timesteps": {"td3": 1000}}
+    module = script_main("procedural_generalisation", "run_benchmark", stop, argv)
+    with pytest.raises(Stop):
+        module.main()
+    (settings,) = captured
+    run = settings.train_settings(settings.grid()[0])
+    engine = loader.load_hyperparams("td3", V1, run.conf_file, run.overrides, run.n_timesteps)
+    recorded = json.loads(json.dumps(yaml.safe_load(yaml.safe_dump(engine.saved))))  # through metadata.json
+    assert recorded == module.trained_entry("td3", V1, run.conf_file, run.overrides, settings.n_timesteps)
+    assert module.stale_entries({**metadata, "entries": {"td3": recorded}}) == []
+    assert recorded["env_kwargs"].get("robot", "kinematic") == robot
+    assert recorded["n_timesteps"] == (1000 if configs else 300_000)
+    # The entry the grid read changes afterwards (the frozen starting entry, or the shipped one): stale.
+    changed = tmp_path / "entries"
+    changed.mkdir()
+    if configs:
+        shutil.copy(module.STARTING_ENTRIES / "td3.yml", changed / "td3.yml")
+        monkeypatch.setattr(module, "STARTING_ENTRIES", changed)
+    else:
+        shutil.copy(loader.packaged_hyperparams_file("td3"), changed / "td3.yml")
+        packaged = loader.packaged_hyperparams_file
+        monkeypatch.setattr(
+            loader, "packaged_hyperparams_file", lambda name: str(changed / "td3.yml") if name == "td3" else packaged(name)
+        )
+    entries = loader.read_hyperparams_file(str(changed / "td3.yml"))
+    entries[V1] = {**entries[V1], "batch_size": 512}
+    (changed / "td3.yml").write_text(yaml.safe_dump(entries))
+    assert module.stale_entries({**metadata, "entries": {"td3": recorded}}) == ["td3"]
+
+
+def test_committed_grids_trained_the_entries_their_command_trains_today(monkeypatch):
+    """A committed grid's numbers are what its command reproduces: no entry it recorded has changed since (else re-run
+    the grid, or keep it under a name of its own as ``..._first_entries``)."""
+    import importlib
+    import sys
+
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    monkeypatch.delitem(sys.modules, "procedural_generalisation", raising=False)
+    module = importlib.import_module("procedural_generalisation")
+    recorded = {folder.name: json.loads((folder / "metadata.json").read_text()) for folder in FOLDERS}
+    recorded = {name: metadata for name, metadata in recorded.items() if "entries" in metadata}
+    if not recorded:
+        pytest.skip("no committed grid records its entries")
+    stale = {name: algos for name, metadata in recorded.items() if (algos := module.stale_entries(metadata))}
+    assert not stale, f"entries changed since these grids ran: {stale}"
+    sys.modules.pop("procedural_generalisation", None)
