@@ -12,9 +12,9 @@ Per grid (a folder of ``benchmarks/results/procedural_generalisation/`` with a `
   bootstrap replications, seed 0) and how many runs reach 0.90.
 
 The reference planner (``reference_planner.py``) adds one row per observation, robot and lidar: one
-deterministic policy, so a rate without a CI. For the pairs of grids in ``COMPARISONS`` (one change between
-them, trained on the same seeds: a setting, the deployed policy, or the algorithm given the same settings), the
-probability that a run of the first beats a run of the second on each test
+deterministic policy, so a rate without a CI. For the pairs of grids in ``COMPARISONS`` (at most one change between
+them, trained on the same seeds: a setting, the deployed policy, the algorithm given the same settings, or none: the
+same configuration trained again), the probability that a run of the first beats a run of the second on each test
 set (rliable, 95% stratified-bootstrap CI): ``comparisons.csv`` and a table in ``summary.md``. Writes
 ``summary.csv`` and ``summary.md`` beside the grids and the figure ``docs/_static/benchmarks/procedural_summary.png``.
 
@@ -56,12 +56,16 @@ SIGHTINGS = ["hit_obstacle", "hit_unseen"]
 #: one algorithm of a grid of several (the four shipped entries in one grid).
 Side = str | tuple[str, str]
 #: Pairs of grids to compare run against run: (changed, control), one algorithm each, the same seeds and test sets,
-#: and one change between them: a setting or the deployed policy of one algorithm, or the algorithm given the same
-#: settings (ADC against TD3 with the same sensor, returns, budget and deployed policy).
+#: and one change between them: a setting or the deployed policy of one algorithm, the algorithm given the same
+#: settings (ADC against TD3 with the same sensor, returns, budget and deployed policy), or none (the shipped entry's
+#: grid against the earlier grid of the same configuration: a replication, trained again with its own periodic
+#: evaluations, on whatever machine ran it).
 AVERAGE_ADC = "LidarObstacleCourse-v1_n_step_150k_sectors_average_validation"
 AVERAGE_TD3 = "LidarObstacleCourse-v1_n_step_td3_150k_sectors_average_validation"
 AVERAGE_ADC_300K = "LidarObstacleCourse-v1_n_step_300k_sectors_average_validation"
 AVERAGE_TD3_300K = "LidarObstacleCourse-v1_n_step_td3_300k_sectors_average_validation"
+#: The grid of the four shipped ``-v1`` entries (clean observations, kinematic robot).
+SHIPPED = "LidarObstacleCourse-v1"
 ACTOR_ITSELF = "_actor_itself"
 BEST = "_best"
 COMPARISONS: list[tuple[Side, Side]] = [
@@ -79,6 +83,7 @@ COMPARISONS: list[tuple[Side, Side]] = [
     (AVERAGE_TD3_300K, AVERAGE_TD3_300K + ACTOR_ITSELF),
     (AVERAGE_ADC_300K, AVERAGE_TD3_300K),
     (AVERAGE_ADC_300K + ACTOR_ITSELF, AVERAGE_TD3_300K + ACTOR_ITSELF),
+    ((SHIPPED, "adc"), AVERAGE_ADC_300K),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
