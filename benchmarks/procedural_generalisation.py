@@ -631,7 +631,7 @@ def main() -> None:
         overrides = robot_overrides(algo, args.env, args.robot, configs[algo], conf_file)
         # What the runs train with (the engine refuses runs on disk made with anything else: RunSettingsMismatch).
         entries[algo] = trained_entry(algo, args.env, conf_file, overrides, budgets[algo])
-        budget = budgets[algo] or load_hyperparams(algo, args.env, conf_file, overrides).n_timesteps
+        budget = entries[algo]["n_timesteps"]
         settings = BenchmarkSettings(
             algos=[algo],
             env_ids=[args.env],

@@ -296,24 +296,16 @@ def test_the_shipped_adc_entry_of_v1_is_the_measured_configuration(grid_settings
 
 @pytest.mark.parametrize(("robot", "configs"), [("kinematic", False), ("wheeled", False), ("wheeled", True)])
 def test_recorded_entries_are_what_the_engine_trains_and_go_stale_when_an_entry_changes(
-    tmp_path, monkeypatch, script_main, robot, configs
+    tmp_path, monkeypatch, grid_settings, robot, configs
 ):
     """``entries`` of a grid's ``metadata.json`` are the hyperparameters the engine resolves for the grid's runs (what
     their ``config.yml`` holds); once the entry they came from changes, ``stale_entries`` names the algorithm."""
+    import importlib
     import shutil
 
     import yaml
 
     from sb3_adc.config import loader
-
-    class Stop(Exception):
-        pass
-
-    captured = []
-
-    def stop(settings, **_):
-        captured.append(settings)
-        raise Stop
 
     metadata = {"env": V1, "robot": robot, "n_timesteps": "each entry's n_timesteps"}
     argv = ["--algos", "td3", "--robot", robot]
@@ -322,10 +314,8 @@ def test_recorded_entries_are_what_the_engine_trains_and_go_stale_when_an_entry_
         path.write_text("td3: {gamma: 0.96, n_timesteps: 1000}\n")
         argv = ["--configs", str(path), *argv]
         metadata |= {"configs": {"td3": {"gamma": 0.96}}, "n_timesteps": {"td3": 1000}}
-    module = script_main("procedural_generalisation", "run_benchmark", stop, argv)
-    with pytest.raises(Stop):
-        module.main()
-    (settings,) = captured
+    settings = _procedural_settings(grid_settings, argv)
+    module = importlib.import_module("procedural_generalisation")  # the one grid_settings ran, its folders in tmp_path
     run = settings.train_settings(settings.grid()[0])
     engine = loader.load_hyperparams("td3", V1, run.conf_file, run.overrides, run.n_timesteps)
     recorded = json.loads(json.dumps(yaml.safe_load(yaml.safe_dump(engine.saved))))  # through metadata.json
