@@ -13,10 +13,11 @@ Per grid (a folder of ``benchmarks/results/procedural_generalisation/`` with a `
 
 The reference planner (``reference_planner.py``) adds one row per observation, robot and lidar: one
 deterministic policy, so a rate without a CI. For the pairs of grids in ``COMPARISONS`` (at most one change between
-them, trained on the same seeds: a setting, the deployed policy, the algorithm given the same settings, or none: the
-same configuration trained again), the probability that a run of the first beats a run of the second on each test
-set (rliable, 95% stratified-bootstrap CI): ``comparisons.csv`` and a table in ``summary.md``. Writes
-``summary.csv`` and ``summary.md`` beside the grids and the figure ``docs/_static/benchmarks/procedural_summary.png``.
+them, trained on the same seeds: a setting, the deployed policy, the algorithm given the same settings, the
+algorithm with its own shipped entry, or none: the same configuration trained again), the probability that a run of
+the first beats a run of the second on each test set (rliable, 95% stratified-bootstrap CI): ``comparisons.csv``
+and a table in ``summary.md``. Writes ``summary.csv`` and ``summary.md`` beside the grids and the figure
+``docs/_static/benchmarks/procedural_summary.png``.
 
 Usage::
 
@@ -57,7 +58,8 @@ SIGHTINGS = ["hit_obstacle", "hit_unseen"]
 Side = str | tuple[str, str]
 #: Pairs of grids to compare run against run: (changed, control), one algorithm each, the same seeds and test sets,
 #: and one change between them: a setting or the deployed policy of one algorithm, the algorithm given the same
-#: settings (ADC against TD3 with the same sensor, returns, budget and deployed policy), or none (the shipped entry's
+#: settings (ADC against TD3 with the same sensor, returns, budget and deployed policy), the algorithm with its own
+#: shipped entry (two algorithms of the shipped grid, each with the entry a user gets), or none (the shipped entry's
 #: grid against the earlier grid of the same configuration: a replication, trained again with its own periodic
 #: evaluations, on whatever machine ran it).
 AVERAGE_ADC = "LidarObstacleCourse-v1_n_step_150k_sectors_average_validation"
@@ -84,6 +86,7 @@ COMPARISONS: list[tuple[Side, Side]] = [
     (AVERAGE_ADC_300K, AVERAGE_TD3_300K),
     (AVERAGE_ADC_300K + ACTOR_ITSELF, AVERAGE_TD3_300K + ACTOR_ITSELF),
     ((SHIPPED, "adc"), AVERAGE_ADC_300K),
+    ((SHIPPED, "adc"), (SHIPPED, "ddpg")),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
