@@ -87,6 +87,8 @@ COMPARISONS: list[tuple[Side, Side]] = [
     (AVERAGE_ADC_300K + ACTOR_ITSELF, AVERAGE_TD3_300K + ACTOR_ITSELF),
     ((SHIPPED, "adc"), AVERAGE_ADC_300K),
     ((SHIPPED, "adc"), (SHIPPED, "ddpg")),
+    ((SHIPPED, "td3"), AVERAGE_TD3_300K),
+    ((SHIPPED, "adc"), (SHIPPED, "td3")),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
