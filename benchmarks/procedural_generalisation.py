@@ -40,7 +40,10 @@ unseen by either.
 
 Training is ``sb3-adc benchmark``'s engine (resumable, one process per run, same seeds and evaluation for every
 algorithm); the runs go to ``benchmarks/runs/procedural_generalisation/`` (not committed), the tables to
-``benchmarks/results/procedural_generalisation/{name}/``, the figures to
+``benchmarks/results/procedural_generalisation/{name}/``. Each run is scored as soon as it is trained and kept in
+the tables at once (those of an algorithm with seeds still to score in ``pending/``, out of the statistics): a
+re-run keeps the scored runs whose entry is current, without their run folders, and trains and scores the others
+(:class:`ScoredRuns`; ``--rescore`` scores every run again). The figures go to
 ``docs/_static/benchmarks/procedural_generalisation_{name}.png`` (success rates) and
 ``docs/_static/benchmarks/procedural_trajectories_{name}.png`` (paths on held-out layouts).
 
@@ -58,12 +61,15 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import functools
+import gzip
 import json
 import os
+import threading
 import time
 from collections import Counter, deque
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -75,6 +81,7 @@ import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 
 from sb3_adc.common.actor_average import ActorAverageTD3Policy
+from sb3_adc.common.atomic import write_atomically
 from sb3_adc.config.experiment_config import ExperimentConfig
 from sb3_adc.config.loader import HyperparamsError, load_hyperparams, read_yaml_file
 from sb3_adc.experiment.benchmark import (
@@ -138,6 +145,23 @@ VALIDATION_EVALUATIONS = 10
 VALIDATION_EPISODES = 100
 #: The table of the validation evaluations of ``--validation`` runs, beside their training record.
 VALIDATION_CSV = "validation.csv"
+#: The tables of a grid's scored runs, one or more rows per run (:class:`ScoredRuns`).
+SUCCESS_CSV = "success.csv"
+RUN_TABLES = (SUCCESS_CSV, FINAL_CSV, TRAJECTORIES_CSV)
+#: The folder, beside a grid's tables, of the runs scored before every seed of their algorithm was (:class:`ScoredRuns`).
+PENDING = "pending"
+#: What a scored run's rows depend on besides its algorithm's entry (keys of ``metadata.json``): runs scored under
+#: another protocol are scored again.
+PROTOCOL = (
+    "env",
+    "robot",
+    "model",
+    "held_out_layouts",
+    "trajectory_layouts",
+    "courses",
+    "course_episodes",
+    "course_start_jitter",
+)
 
 
 def report(outcome: RunOutcome, done: int, total: int, by_folder: bool = False) -> None:
@@ -262,6 +286,7 @@ def training_record(
     workers: int,
     algos: list[str] | None = None,
     runs_folder: Path | None = None,
+    kept: bool = False,
 ) -> dict[str, Any]:
     """
     The training facts to record in ``output/metadata.json``: ``training_invocations``, one entry per invocation
@@ -278,8 +303,13 @@ def training_record(
     that finds none of its runs finished replaces the earlier invocations of its algorithms and keeps those of the
     grid's other algorithms (trained by an invocation with other ``--algos``).
 
+    Where the grid kept runs scored before (``kept``, :class:`ScoredRuns`), the invocations that trained them may
+    be recorded in ``metadata.json`` only (their run folders gone with another machine): every earlier entry that
+    the engine's record does not hold is kept.
+
     :param algos: The algorithms of this invocation (``None``: every algorithm of the grid)
     :param runs_folder: The folder of the grid's run folders (one per algorithm or configuration)
+    :param kept: Whether the grid kept runs scored before
     """
     previous = output / "metadata.json"
     earlier = json.loads(previous.read_text()) if previous.exists() else {}
@@ -287,14 +317,19 @@ def training_record(
     recorded = read_invocations(str(path.parent) for path in journals)
     if recorded:
         first = recorded[0]["runs"]
-        legacy = [entry for entry in earlier.get("training_invocations", []) if "started" not in entry]
-        kept = legacy if first.get("skipped", 0) + first.get("resumed", 0) else []
+        known = {entry["started"] for entry in recorded}
+        if kept:
+            before = [entry for entry in earlier.get("training_invocations", []) if entry.get("started") not in known]
+        elif first.get("skipped", 0) + first.get("resumed", 0):
+            before = [entry for entry in earlier.get("training_invocations", []) if "started" not in entry]
+        else:
+            before = []
         worked = [
             {key: entry[key] for key in ("started", "wall_time_s", "workers", "algos", "runs", "finished")}
             for entry in recorded
             if entry["runs"].get("trained", 0) + entry["runs"].get("resumed", 0) or not entry["finished"]
         ]
-        invocations = [*kept, *worked]
+        invocations = [*before, *worked]
         return {
             "training_wall_time_s": round(sum(invocation["wall_time_s"] for invocation in invocations), 1),
             "training_workers": invocations[-1]["workers"] if invocations else workers,
@@ -321,10 +356,12 @@ def training_record(
         # Entries recorded without their algorithms belong to the algorithms of the metadata that holds them.
         history = [entry if "algos" in entry else {**entry, "algos": earlier["algos"]} for entry in history]
     if statuses["trained"] + statuses["resumed"]:
-        kept = history or []
-        if not statuses["skipped"]:
-            kept = [entry for entry in kept if algos is not None and not set(entry.get("algos", [])) <= set(algos)]
-        history = [*kept, this]
+        previous_entries = history or []
+        if not statuses["skipped"] and not kept:
+            previous_entries = [
+                entry for entry in previous_entries if algos is not None and not set(entry.get("algos", [])) <= set(algos)
+            ]
+        history = [*previous_entries, this]
     elif not history:
         history = [this]
     return {
@@ -529,6 +566,157 @@ def stale_entries(metadata: dict[str, Any]) -> list[str]:
     return stale
 
 
+def write_table(table: pd.DataFrame, path: Path) -> None:
+    """
+    Write a table atomically; a ``.gz`` one compressed without a timestamp, so that the same rows give the same
+    bytes and rewriting an unchanged table leaves it unchanged.
+    """
+    data = table.to_csv(index=False).encode()
+    if path.name.endswith(".gz"):
+        data = gzip.compress(data, mtime=0)
+    write_atomically(path, lambda stream: stream.write(data), binary=True)
+
+
+def read_table(path: Path) -> pd.DataFrame | None:
+    """A table of runs, ``None`` where there is none; its floats read back exactly as written."""
+    return pd.read_csv(path, float_precision="round_trip") if path.exists() else None
+
+
+def runs_of(table: pd.DataFrame) -> set[tuple[str, int]]:
+    """The runs (algorithm, seed) with rows in a table of runs."""
+    return {(str(algo), int(seed)) for algo, seed in zip(table["algo"], table["seed"], strict=True)}
+
+
+def select_runs(table: pd.DataFrame, runs: set[tuple[str, int]], keep: bool = True) -> pd.DataFrame:
+    """The rows of a table of runs that are those of ``runs`` (``keep``) or of the other runs."""
+    mask = [((str(algo), int(seed)) in runs) == keep for algo, seed in zip(table["algo"], table["seed"], strict=True)]
+    return table[np.array(mask, dtype=bool)].reset_index(drop=True)
+
+
+def replace_runs(table: pd.DataFrame | None, new: pd.DataFrame, algos: list[str]) -> pd.DataFrame:
+    """
+    ``table`` with the rows of the runs of ``new`` replaced by ``new``'s, sorted by algorithm (in the order of
+    ``algos``) and seed, each run's rows in their order.
+    """
+    kept = select_runs(table, runs_of(new), keep=False) if table is not None else new.iloc[:0]
+    merged = pd.concat([frame for frame in (kept, new) if not frame.empty], ignore_index=True)
+    rank = merged["algo"].map({algo: position for position, algo in enumerate(algos)})
+    return merged.assign(_rank=rank).sort_values(["_rank", "seed"], kind="stable").drop(columns="_rank").reset_index(drop=True)
+
+
+class ScoredRuns:
+    """
+    The runs of a grid scored so far, kept with its results: a grid trained over several invocations, sessions or
+    machines never trains or scores a finished run twice, and loses none when the runs' folders (not committed) are
+    gone. ``success.csv``, ``final.csv`` and ``trajectories.csv.gz`` of the results folder hold the runs of the
+    algorithms whose every seed is scored, the only ones the statistics use; ``pending/`` holds the same tables
+    for the runs of the other algorithms. ``metadata.json`` records the entry of every algorithm with scored runs
+    (``entries``) and the seeds scored of the others (``pending_runs``). Each run is written as soon as it is
+    scored.
+
+    A run found there is kept when its algorithm's entry is the one the grid trains today and the scoring protocol
+    (:data:`PROTOCOL`) is the same; otherwise it is trained (or found finished on disk) and scored again.
+
+    :param output: The grid's results folder
+    :param protocol: The grid's values of :data:`PROTOCOL`
+    :param entries: The entries this invocation trains (:func:`trained_entry`) by algorithm; the recorded ones of
+        the grid's other algorithms are kept where :func:`stale_entries` finds them current
+    :param seeds: The grid's seeds
+    :param rescore: Keep no run (``--rescore``)
+    """
+
+    def __init__(
+        self,
+        output: Path,
+        protocol: dict[str, Any],
+        entries: dict[str, dict[str, Any]],
+        seeds: list[int],
+        rescore: bool = False,
+    ) -> None:
+        self.output = output
+        self.seeds = seeds
+        path = output / "metadata.json"
+        self.metadata: dict[str, Any] = json.loads(path.read_text()) if path.exists() else {}
+        recorded: dict[str, Any] = self.metadata.get("entries", {})
+        same = bool(recorded) and not rescore and all(self.metadata.get(key) == protocol[key] for key in PROTOCOL)
+        stale = set(stale_entries(self.metadata)) if same else set()
+        valid = [
+            algo
+            for algo, entry in recorded.items()
+            if same and (entries[algo] == entry if algo in entries else algo not in stale)
+        ]
+        #: The entry of each algorithm of the grid, in its order: those with runs kept first
+        self.entries = {algo: recorded[algo] for algo in valid} | {
+            algo: entry for algo, entry in entries.items() if algo not in valid
+        }
+        tables = {}
+        for name in RUN_TABLES:
+            found = [table for table in (read_table(output / name), read_table(output / PENDING / name)) if table is not None]
+            table = pd.concat(found, ignore_index=True) if found else pd.DataFrame(columns=["algo", "seed"])
+            tables[name] = table[table["algo"].isin(valid) & table["seed"].isin(seeds)]
+        # A run counts as scored where both its scores and its final evaluation are there.
+        runs = runs_of(tables[SUCCESS_CSV]) & runs_of(tables[FINAL_CSV])
+        self.tables = {name: select_runs(table, runs) for name, table in tables.items()}
+        #: How many runs were found scored
+        self.kept = len(runs)
+
+    def scored(self, algo: str) -> list[int]:
+        """The seeds of ``algo`` scored so far."""
+        table = self.tables[SUCCESS_CSV]
+        return sorted({int(seed) for seed in table.loc[table["algo"] == algo, "seed"]})
+
+    def missing(self, algo: str) -> list[int]:
+        """The seeds of ``algo`` to train (or find finished) and score."""
+        scored = set(self.scored(algo))
+        return [seed for seed in self.seeds if seed not in scored]
+
+    def complete(self) -> list[str]:
+        """The algorithms whose every seed is scored, in the grid's order."""
+        return [algo for algo in self.entries if not self.missing(algo)]
+
+    def pending(self) -> dict[str, list[int]]:
+        """The seeds scored of the algorithms with some but not all of their seeds scored."""
+        return {algo: seeds for algo in self.entries if (seeds := self.scored(algo)) and self.missing(algo)}
+
+    def table(self, name: str, algos: list[str]) -> pd.DataFrame:
+        """The rows of table ``name`` of the runs of ``algos``."""
+        table = self.tables[name]
+        return table[table["algo"].isin(algos)].reset_index(drop=True)
+
+    def add(self, final: dict[str, Any], rows: list[dict[str, Any]], paths: list[pd.DataFrame]) -> None:
+        """Keep a scored run (its final evaluation, its scores and its paths, each of them labelled with the run) and
+        write the tables."""
+        new = {FINAL_CSV: pd.DataFrame([final]), SUCCESS_CSV: pd.DataFrame(rows), TRAJECTORIES_CSV: pd.concat(paths)}
+        for name, table in self.tables.items():
+            self.tables[name] = replace_runs(table, new[name], list(self.entries))
+        self.write()
+
+    def write(self, metadata: dict[str, Any] | None = None) -> None:
+        """
+        Write the tables (the complete algorithms' runs in the results folder, the others' in ``pending/``) and
+        ``metadata.json``: ``metadata`` (default: the one found) with ``entries`` and ``pending_runs``.
+        """
+        complete, pending = self.complete(), self.pending()
+        for name in RUN_TABLES:
+            for folder, algos in ((self.output, complete), (self.output / PENDING, list(pending))):
+                table = self.table(name, algos)
+                if not table.empty:
+                    folder.mkdir(parents=True, exist_ok=True)
+                    write_table(table, folder / name)
+                elif (folder / name).exists():
+                    (folder / name).unlink()
+        if (self.output / PENDING).exists() and not any((self.output / PENDING).iterdir()):
+            (self.output / PENDING).rmdir()
+        scored = [algo for algo in self.entries if self.scored(algo)]
+        metadata = {key: value for key, value in (metadata or self.metadata).items() if key != "pending_runs"}
+        metadata["entries"] = {algo: self.entries[algo] for algo in scored}
+        if pending:
+            metadata["pending_runs"] = pending
+        self.metadata = metadata
+        text = json.dumps(metadata, indent=2) + "\n"
+        write_atomically(self.output / "metadata.json", lambda stream: stream.write(text))
+
+
 def as_scores(scores: pd.DataFrame) -> pd.DataFrame:
     """The success rates in the statistics' layout: each test set as an ``env``, each rate as a ``mean_return``."""
     return scores.drop(columns="env").rename(columns={"test_set": "env", "success_rate": "mean_return"})
@@ -576,6 +764,9 @@ def main() -> None:
     parser.add_argument(
         "--actor-itself", action="store_true", help="score ADC's actor itself instead of its averaged actor (see above)"
     )
+    parser.add_argument(
+        "--rescore", action="store_true", help="score every run again instead of keeping the runs scored before (see above)"
+    )
     args = parser.parse_args()
     if min(args.workers, args.course_episodes, args.reps, args.trajectory_layouts) < 1:
         parser.error("--workers, --course-episodes, --reps and --trajectory-layouts must be >= 1")
@@ -614,7 +805,7 @@ def main() -> None:
     output = RESULTS_DIR / name
     if args.replot:
         figure = DOCS_STATIC / f"procedural_generalisation_{name}.png"
-        plot(pd.read_csv(output / "success.csv"), figure, reps)
+        plot(pd.read_csv(output / SUCCESS_CSV), figure, reps)
         print(f"wrote {figure}")
         if (output / TRAJECTORIES_CSV).exists():
             paths_figure = DOCS_STATIC / f"procedural_trajectories_{name}.png"
@@ -622,70 +813,145 @@ def main() -> None:
             print(f"wrote {paths_figure}")
         return
     output.mkdir(parents=True, exist_ok=True)
-    start = time.perf_counter()
-    finals, evaluations, statuses = [], [], Counter[str]()
-    entries: dict[str, dict[str, Any]] = {}
     conf_folder = str(STARTING_ENTRIES) if args.configs else None
-    for algo in args.algos:
-        conf_file = starting_entry(algo) if args.configs else None
-        overrides = robot_overrides(algo, args.env, args.robot, configs[algo], conf_file)
-        # What the runs train with (the engine refuses runs on disk made with anything else: RunSettingsMismatch).
-        entries[algo] = trained_entry(algo, args.env, conf_file, overrides, budgets[algo])
-        budget = entries[algo]["n_timesteps"]
-        settings = BenchmarkSettings(
-            algos=[algo],
-            env_ids=[args.env],
-            seeds=seeds,
-            log_folder=str(folder / algo),
-            n_timesteps=budgets[algo],
-            overrides=overrides,
-            conf_folder=conf_folder,
-            final_eval_episodes=20,
-            device="cpu",
-            **periodic_evaluations(args.validation, budget, VALIDATION_EPISODES if not args.quick else 3),
-        )
-        result = run_benchmark(settings, workers=args.workers, report=report)
-        statuses.update(outcome.status for outcome in result.outcomes)
-        if result.failures:
-            raise SystemExit(f"{len(result.failures)} runs of {algo} failed; re-run to retry them")
-        finals.append(pd.read_csv(result.tables[FINAL_CSV]))
-        evaluations.append(pd.read_csv(result.tables[EVALUATIONS_CSV]))
+    overrides = {
+        algo: robot_overrides(algo, args.env, args.robot, configs[algo], starting_entry(algo) if args.configs else None)
+        for algo in args.algos
+    }
+    # What the runs train with (the engine refuses runs on disk made with anything else: RunSettingsMismatch).
+    entries = {
+        algo: trained_entry(algo, args.env, starting_entry(algo) if args.configs else None, overrides[algo], budgets[algo])
+        for algo in args.algos
+    }
+    model = VALIDATION_BEST if args.validation and args.model == "best" else MODELS[args.model]
+    protocol = {
+        "env": args.env,
+        "robot": args.robot,
+        "model": model,
+        "held_out_layouts": [TEST_LAYOUT_SEEDS[0], TEST_LAYOUT_SEEDS[0] + n_layouts - 1],
+        "trajectory_layouts": trajectory_layouts,
+        "courses": courses,
+        "course_episodes": args.course_episodes,
+        "course_start_jitter": COURSE_JITTER,
+    }
+    ledger = ScoredRuns(output, protocol, entries, seeds, rescore=args.rescore)
+    if ledger.kept:
+        print(f"{ledger.kept} runs scored before are kept ({output}); the others are trained and scored", flush=True)
+    # What the grid is, recorded with its runs as each is kept: this invocation's budgets and configurations, and
+    # the recorded ones of the grid's other algorithms.
+    earlier = ledger.metadata
+    grid_algos = list(ledger.entries)
+    recorded_budgets = earlier.get("n_timesteps")
+    earlier_budgets: dict[str, Any] = recorded_budgets if isinstance(recorded_budgets, dict) else {}
+    budget_record = {**earlier_budgets, **{algo: budget or "the entry's n_timesteps" for algo, budget in budgets.items()}}
+    all_configs = {**earlier.get("configs", {}), **configs}
+    description = {
+        "env": args.env,
+        "robot": args.robot,
+        "seeds": seeds,
+        "n_timesteps": (
+            {algo: budget_record[algo] for algo in grid_algos if algo in budget_record}
+            if args.configs or args.quick
+            else "each entry's n_timesteps"
+        ),
+        "hyperparams": (
+            f"starting entries ({repository_path(str(STARTING_ENTRIES))}/{{algo}}.yml) with the overrides of "
+            f"{repository_path(args.configs)}"
+            if args.configs
+            else "shipped (hyperparams/{algo}.yml)"
+        ),
+        **({"configs": {algo: all_configs[algo] for algo in grid_algos if algo in all_configs}} if args.configs else {}),
+        "entries": ledger.entries,
+        "model": model,
+        **({"validation": periodic_evaluations(True, 0)} if args.validation else {}),
+        **({"actor_itself": True} if args.actor_itself else {}),
+        **{key: value for key, value in protocol.items() if key not in ("env", "robot", "model")},
+    }
+    ledger.metadata = {**earlier, **description}
+    start = time.perf_counter()
+    evaluations, statuses = [], Counter[str]()
+    scoring_start, scored = None, 0
+    with ProcessPoolExecutor(max_workers=args.workers) as scoring:
+        # Each run is scored as soon as it is trained (or found finished), beside the training, and kept (written)
+        # as soon as it is scored, by the scoring's callback thread; each of `writes` completes once its run is written.
+        lock, writes = threading.Lock(), list[Future[None]]()
+
+        def keep(final: dict[str, Any], done: Future[Any], written: Future[None]) -> None:
+            nonlocal scored
+            try:
+                rows, paths = done.result()
+                with lock:
+                    scored += 1
+                    print(f"scored {scored}: {scored_line(final['algo'], final['seed'], rows)}", flush=True)
+                    ledger.add(final, rows, paths)
+                written.set_result(None)
+            except BaseException as error:  # raised by the main thread (`collect`)
+                written.set_exception(error)
+
+        def collect() -> None:
+            for written in writes:
+                written.result()
+
+        def on_run(outcome: RunOutcome, done: int, total: int) -> None:
+            nonlocal scoring_start
+            report(outcome, done, total)
+            if outcome.final is None:
+                return
+            spec = outcome.spec
+            job = (
+                RunSpec(spec.algo, args.env, spec.seed).run_dir(str(folder / spec.algo)),
+                spec.algo,
+                args.env,
+                spec.seed,
+                courses,
+                args.course_episodes,
+                n_layouts,
+                trajectory_layouts,
+                args.model,
+                args.actor_itself,
+            )
+            scoring_start = scoring_start or time.perf_counter()
+            written = Future[None]()
+            writes.append(written)
+            scoring.submit(score_run, *job).add_done_callback(functools.partial(keep, outcome.final, written=written))
+
+        for algo in args.algos:
+            missing = ledger.missing(algo)
+            if not missing:
+                continue
+            settings = BenchmarkSettings(
+                algos=[algo],
+                env_ids=[args.env],
+                seeds=missing,
+                log_folder=str(folder / algo),
+                n_timesteps=budgets[algo],
+                overrides=overrides[algo],
+                conf_folder=conf_folder,
+                final_eval_episodes=20,
+                device="cpu",
+                **periodic_evaluations(
+                    args.validation, entries[algo]["n_timesteps"], VALIDATION_EPISODES if not args.quick else 3
+                ),
+            )
+            result = run_benchmark(settings, workers=args.workers, report=on_run)
+            statuses.update(outcome.status for outcome in result.outcomes)
+            table = pd.read_csv(result.tables[EVALUATIONS_CSV])
+            evaluations.append(table[table["seed"].isin(missing)])
+            if result.failures:
+                collect()
+                raise SystemExit(f"{len(result.failures)} runs of {algo} failed; re-run to retry them")
+        collect()
+    scoring_s = time.perf_counter() - scoring_start if scoring_start is not None else None
     # The training of the grid (recorded beside its final models when `--model best` finds every run finished).
     elapsed = time.perf_counter() - start
-    training = training_record(RESULTS_DIR / runs_name, statuses, elapsed, args.workers, args.algos, folder)
-    if args.validation:  # beside the training record: the runs' evaluations, whichever model is scored
-        validation_table(pd.concat(evaluations, ignore_index=True)).to_csv(
-            RESULTS_DIR / runs_name / VALIDATION_CSV, index=False
-        )
-    pd.concat(finals, ignore_index=True).to_csv(output / FINAL_CSV, index=False)
-    jobs = [
-        (
-            RunSpec(algo, args.env, seed).run_dir(str(folder / algo)),
-            algo,
-            args.env,
-            seed,
-            courses,
-            args.course_episodes,
-            n_layouts,
-            trajectory_layouts,
-            args.model,
-            args.actor_itself,
-        )
-        for algo in args.algos
-        for seed in seeds
-    ]
-    start = time.perf_counter()
-    scored = []
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        results = pool.map(score_run, *zip(*jobs, strict=True))
-        for done, (job, (rows, paths)) in enumerate(zip(jobs, results, strict=True), 1):
-            print(f"scored [{done}/{len(jobs)}] {scored_line(job[1], job[3], rows)}", flush=True)
-            scored.append((rows, paths))
-    scoring_s = time.perf_counter() - start
-    scores = pd.DataFrame([row for rows, _ in scored for row in rows])
-    scores.to_csv(output / "success.csv", index=False)
-    trajectories = pd.concat([path for _, paths in scored for path in paths], ignore_index=True)
-    trajectories.to_csv(output / TRAJECTORIES_CSV, index=False)
+    training = training_record(RESULTS_DIR / runs_name, statuses, elapsed, args.workers, args.algos, folder, bool(ledger.kept))
+    if args.validation and evaluations:  # beside the training record: the runs' evaluations, whichever model is scored
+        path = RESULTS_DIR / runs_name / VALIDATION_CSV
+        new = validation_table(pd.concat(evaluations, ignore_index=True))
+        write_table(replace_runs(read_table(path), new, list(ledger.entries)), path)
+    algos = ledger.complete()
+    scores = ledger.table(SUCCESS_CSV, algos)
+    trajectories = ledger.table(TRAJECTORIES_CSV, algos)
     paths_figure = output / "trajectories.png"
     plot_paths(trajectories, args.env, args.robot, paths_figure, args.model)
     figure = output / "success_rates.png"
@@ -708,37 +974,16 @@ def main() -> None:
     metadata = {
         "env": args.env,
         "robot": args.robot,
-        "algos": args.algos,
-        "seeds": seeds,
-        "n_timesteps": (
-            {algo: budget or "the entry's n_timesteps" for algo, budget in budgets.items()}
-            if args.configs or args.quick
-            else "each entry's n_timesteps"
-        ),
-        "hyperparams": (
-            f"starting entries ({repository_path(str(STARTING_ENTRIES))}/{{algo}}.yml) with the overrides of "
-            f"{repository_path(args.configs)}"
-            if args.configs
-            else "shipped (hyperparams/{algo}.yml)"
-        ),
-        **({"configs": configs} if args.configs else {}),
-        "entries": entries,
-        "model": VALIDATION_BEST if args.validation and args.model == "best" else MODELS[args.model],
-        **({"validation": periodic_evaluations(True, 0)} if args.validation else {}),
-        **({"actor_itself": True} if args.actor_itself else {}),
-        "held_out_layouts": [TEST_LAYOUT_SEEDS[0], TEST_LAYOUT_SEEDS[0] + n_layouts - 1],
-        "trajectory_layouts": trajectory_layouts,
-        "courses": courses,
-        "course_episodes": args.course_episodes,
-        "course_start_jitter": COURSE_JITTER,
+        "algos": algos,
+        **{key: value for key, value in description.items() if key not in ("env", "robot")},
         **training,
-        "runs_this_invocation": dict(sorted(statuses.items())),
-        "scoring_wall_time_s": round(scoring_s, 1),
+        "runs_this_invocation": dict(sorted((statuses + Counter(kept=ledger.kept)).items())),
+        "scoring_wall_time_s": round(scoring_s, 1) if scoring_s is not None else earlier.get("scoring_wall_time_s"),
         "workers": args.workers,
         "bootstrap_reps": reps,
         **machine_metadata(),
     }
-    (output / "metadata.json").write_text(json.dumps(metadata, indent=2) + "\n")
+    ledger.write(metadata)
     print("\n".join(lines))
 
 

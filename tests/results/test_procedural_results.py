@@ -56,6 +56,27 @@ def test_committed_paths_match_the_scored_runs_and_the_layouts(folder):
         assert drawn.loc[(row.algo, row.seed)] <= row.successes
 
 
+def test_committed_pending_runs_are_those_the_metadata_names_and_stay_out_of_the_statistics():
+    """A grid committed while it trains over several sessions: ``pending/`` holds exactly the runs that
+    ``metadata.json`` names as ``pending_runs``, each with its scores, final evaluation and paths, of algorithms
+    with a recorded entry and no rows in the grid's statistics."""
+    grids = [path.parent for path in RESULTS.glob("*/metadata.json")]
+    pending = {grid: json.loads((grid / "metadata.json").read_text()).get("pending_runs") for grid in grids}
+    for grid in grids:
+        assert bool(pending[grid]) == (grid / "pending").is_dir(), grid.name
+    for grid, runs in pending.items():
+        if not runs:
+            continue
+        metadata = json.loads((grid / "metadata.json").read_text())
+        expected = {(algo, seed) for algo, seeds in runs.items() for seed in seeds}
+        for name in ("success.csv", "final.csv", "trajectories.csv.gz"):
+            table = pd.read_csv(grid / "pending" / name)
+            assert set(table[["algo", "seed"]].itertuples(index=False, name=None)) == expected, (grid.name, name)
+        assert set(runs) <= set(metadata["entries"]) - set(metadata["algos"])
+        assert not set(runs) & set(pd.read_csv(grid / "success.csv")["algo"])
+        assert not set(runs) & set(pd.read_csv(grid / "success_rates.csv")["algo"])
+
+
 PLANNER_CSV = RESULTS / "reference_planner.csv"
 
 

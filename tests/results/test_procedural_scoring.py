@@ -395,3 +395,105 @@ def test_validated_runs_keep_the_model_of_the_best_validation_success(scripts, t
     assert saved.best_model_metric == "success"
     assert saved.eval_env_kwargs == {"layout_seeds": [2_000_000, 2_000_100]}
     assert Path(RunLayout(run_dir, ENV_ID).best_model).is_file()
+
+
+def _scored_run(algo: str, seed: int, rate: float) -> tuple[dict, list[dict], list[pd.DataFrame]]:
+    """A scored run as ``score_run`` and the engine give it: its final row, its scores and its paths."""
+    final = {"algo": algo, "env": ENV_ID, "seed": seed, "timesteps": 300, "mean_return": 0.1 + 0.2 * rate, "n_episodes": 1}
+    rows = [{"algo": algo, "env": ENV_ID, "seed": seed, "test_set": name, "success_rate": rate} for name in ("a", "b")]
+    paths = [pd.DataFrame({"algo": algo, "seed": seed, "course": "layout 1", "step": [0, 1], "x": [0.0, 0.1]})]
+    return final, rows, paths
+
+
+def test_scored_runs_are_kept_with_the_results_and_pending_until_every_seed_is(scripts, tmp_path, monkeypatch):
+    """A grid spread over machines: each scored run is written at once, the runs of an algorithm with seeds still
+    to score apart (``pending/``, out of the statistics' tables); a later invocation without the run folders keeps
+    them, as long as the algorithm's entry and the scoring protocol are those it scored with."""
+    procedural, _ = scripts
+    protocol = dict.fromkeys(procedural.PROTOCOL, "same")
+    entries = {"td3": {"gamma": 0.98}, "sac": {"gamma": 0.99}}
+
+    def ledger(entries=entries, protocol=protocol, rescore=False):
+        return procedural.ScoredRuns(tmp_path, protocol, entries, [0, 1], rescore)
+
+    scored = ledger()
+    scored.metadata = {**protocol, "n_timesteps": "each entry's n_timesteps"}
+    for algo, seed in (("td3", 0), ("sac", 0), ("td3", 1)):
+        scored.add(*_scored_run(algo, seed, 0.5))
+    assert scored.complete() == ["td3"]
+    assert scored.pending() == {"sac": [0]}
+    success = pd.read_csv(tmp_path / "success.csv")
+    assert list(zip(success["algo"], success["seed"], strict=True)) == [("td3", 0), ("td3", 0), ("td3", 1), ("td3", 1)]
+    assert set(pd.read_csv(tmp_path / "pending" / "final.csv")["algo"]) == {"sac"}
+    metadata = json.loads((tmp_path / "metadata.json").read_text())
+    assert metadata["pending_runs"] == {"sac": [0]}
+    assert list(metadata["entries"]) == ["td3", "sac"]
+    # Another machine: the same grid keeps the three runs and trains sac's seed 1 only.
+    again = ledger()
+    assert again.kept == 3
+    assert again.missing("td3") == []
+    assert again.missing("sac") == [1]
+    again.add(*_scored_run("sac", 1, 1.0))
+    assert not (tmp_path / "pending").exists()
+    assert "pending_runs" not in again.metadata
+    final = (tmp_path / "final.csv").read_bytes()
+    assert list(pd.read_csv(tmp_path / "final.csv")["algo"]) == ["td3", "td3", "sac", "sac"]
+    # Written again unchanged: the same bytes (floats read back exactly, gzip without a timestamp).
+    trajectories = (tmp_path / "trajectories.csv.gz").read_bytes()
+    ledger().write()
+    assert (tmp_path / "final.csv").read_bytes() == final
+    assert (tmp_path / "trajectories.csv.gz").read_bytes() == trajectories
+    # An entry changed since: that algorithm's runs are trained and scored again, the others' kept.
+    changed = ledger({**entries, "sac": {"gamma": 0.9}})
+    assert changed.missing("sac") == [0, 1]
+    assert changed.missing("td3") == []
+    assert changed.kept == 2
+    # An algorithm this invocation does not train is kept while its recorded entry is current (stale_entries).
+    monkeypatch.setattr(procedural, "stale_entries", lambda metadata: ["sac"])
+    assert ledger({"td3": entries["td3"]}).entries == {"td3": entries["td3"]}
+    monkeypatch.setattr(procedural, "stale_entries", lambda metadata: [])
+    assert ledger({"td3": entries["td3"]}).kept == 4
+    # Another protocol (another model scored, other test sets) or --rescore: no run is kept.
+    assert ledger(protocol={**protocol, "courses": ["other"]}).kept == 0
+    assert ledger(rescore=True).kept == 0
+
+
+def test_a_grid_whose_run_folders_are_gone_keeps_its_scored_runs(script_main, tmp_path):
+    """End to end: the runs' folders are lost (another machine); the grid's command trains and scores nothing again
+    and writes the same tables."""
+    from sb3_adc.experiment.benchmark import run_benchmark as engine
+
+    argv = ["--quick", "--algos", "td3", "--workers", "1", "--reps", "50"]
+    script_main("procedural_generalisation", "run_benchmark", engine, argv).main()
+    output = tmp_path / "results" / "LidarObstacleCourse-v1_quick"
+    tables = {name: (output / name).read_bytes() for name in ("success.csv", "final.csv", "success_rates.csv")}
+    assert len(pd.read_csv(output / "final.csv")) == 2
+    for path in sorted((tmp_path / "runs").rglob("*"), reverse=True):
+        path.unlink() if path.is_file() else path.rmdir()
+
+    def no_training(*args, **kwargs):
+        raise AssertionError("a kept run was trained again")
+
+    script_main("procedural_generalisation", "run_benchmark", no_training, argv).main()
+    assert {name: (output / name).read_bytes() for name in tables} == tables
+    assert json.loads((output / "metadata.json").read_text())["runs_this_invocation"] == {"kept": 2}
+
+
+def test_the_training_record_keeps_the_invocations_of_kept_runs_trained_elsewhere(scripts, tmp_path):
+    """Runs kept from the results (:class:`ScoredRuns`) were trained by invocations whose record went with their
+    machine: ``metadata.json`` holds them, and they stay beside the invocations recorded here."""
+    from sb3_adc.experiment.invocations import InvocationJournal
+
+    procedural, _ = scripts
+    output, runs = tmp_path / "results", tmp_path / "runs"
+    output.mkdir()
+    elsewhere = {"started": "2026-01-01T00:00:00+00:00", "wall_time_s": 900.0, "workers": 2, "algos": ["td3"]}
+    (output / "metadata.json").write_text(json.dumps({"training_invocations": [elsewhere]}))
+    with InvocationJournal([(str(runs / "sac"), ["sac"], 2)], 2, "local") as journal:
+        journal.record(str(runs / "sac"), "trained")
+    record = procedural.training_record(output, Counter(trained=1), 5.0, 2, ["sac"], runs, kept=True)
+    assert record["training_invocations"][0] == elsewhere
+    assert record["training_invocations"][1]["algos"] == ["sac"]
+    # Without kept runs, runs trained from scratch here: the earlier entries describe other runs.
+    alone = procedural.training_record(output, Counter(trained=1), 5.0, 2, ["sac"], runs)
+    assert [entry["algos"] for entry in alone["training_invocations"]] == [["sac"]]
