@@ -639,7 +639,9 @@ class ScoredRuns:
         self.metadata: dict[str, Any] = json.loads(path.read_text()) if path.exists() else {}
         recorded: dict[str, Any] = self.metadata.get("entries", {})
         same = bool(recorded) and not rescore and all(self.metadata.get(key) == protocol[key] for key in PROTOCOL)
-        stale = set(stale_entries(self.metadata)) if same else set()
+        # The entries this invocation trains are compared as resolved; only the others' are resolved again here.
+        others = {algo: entry for algo, entry in recorded.items() if algo not in entries}
+        stale = set(stale_entries({**self.metadata, "entries": others})) if same and others else set()
         valid = [
             algo
             for algo, entry in recorded.items()
@@ -694,7 +696,8 @@ class ScoredRuns:
     def write(self, metadata: dict[str, Any] | None = None) -> None:
         """
         Write the tables (the complete algorithms' runs in the results folder, the others' in ``pending/``) and
-        ``metadata.json``: ``metadata`` (default: the one found) with ``entries`` and ``pending_runs``.
+        ``metadata.json``: ``metadata`` (default: :attr:`metadata`, the one found or the one the grid set) with
+        ``entries`` and ``pending_runs``.
         """
         complete, pending = self.complete(), self.pending()
         for name in RUN_TABLES:
