@@ -68,7 +68,7 @@ import os
 import threading
 import time
 from collections import Counter, deque
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from concurrent.futures import Future, ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -546,18 +546,21 @@ def trained_entry(
     return yaml.safe_load(yaml.safe_dump(resolved.saved))
 
 
-def stale_entries(metadata: dict[str, Any]) -> list[str]:
+def stale_entries(metadata: dict[str, Any], algos: Collection[str] | None = None) -> list[str]:
     """
     The algorithms of a scored grid whose recorded ``entries`` differ from what the grid's command trains today: an
     entry (shipped, or a starting entry of ``--configs``) changed after the grid ran, so its numbers are no longer
     what the command reproduces. Grids scored before ``entries`` was recorded have none to check.
 
     :param metadata: The grid's ``metadata.json``
+    :param algos: The recorded algorithms to check (``None``: all of them)
     """
     configs = metadata.get("configs")
     budgets = metadata["n_timesteps"] if isinstance(metadata["n_timesteps"], dict) else {}
     stale = []
     for algo, recorded in metadata.get("entries", {}).items():
+        if algos is not None and algo not in algos:
+            continue
         conf_file = starting_entry(algo) if configs is not None else None
         overrides = robot_overrides(algo, metadata["env"], metadata["robot"], (configs or {}).get(algo), conf_file)
         budget = budgets.get(algo)
@@ -640,8 +643,8 @@ class ScoredRuns:
         recorded: dict[str, Any] = self.metadata.get("entries", {})
         same = bool(recorded) and not rescore and all(self.metadata.get(key) == protocol[key] for key in PROTOCOL)
         # The entries this invocation trains are compared as resolved; only the others' are resolved again here.
-        others = {algo: entry for algo, entry in recorded.items() if algo not in entries}
-        stale = set(stale_entries({**self.metadata, "entries": others})) if same and others else set()
+        others = [algo for algo in recorded if algo not in entries]
+        stale = set(stale_entries(self.metadata, others)) if same and others else set()
         valid = [
             algo
             for algo, entry in recorded.items()

@@ -360,6 +360,8 @@ def test_recorded_entries_are_what_the_engine_trains_and_go_stale_when_an_entry_
     entries[V1] = {**entries[V1], "batch_size": 512}
     (changed / "td3.yml").write_text(yaml.safe_dump(entries))
     assert module.stale_entries({**metadata, "entries": {"td3": recorded}}) == ["td3"]
+    # Only the algorithms asked about are checked.
+    assert module.stale_entries({**metadata, "entries": {"td3": recorded}}, ["sac"]) == []
 
 
 def test_committed_grids_trained_the_entries_their_command_trains_today(monkeypatch):

@@ -449,9 +449,9 @@ def test_scored_runs_are_kept_with_the_results_and_pending_until_every_seed_is(s
     assert changed.missing("td3") == []
     assert changed.kept == 2
     # An algorithm this invocation does not train is kept while its recorded entry is current (stale_entries).
-    monkeypatch.setattr(procedural, "stale_entries", lambda metadata: ["sac"])
+    monkeypatch.setattr(procedural, "stale_entries", lambda metadata, algos=None: ["sac"])
     assert ledger({"td3": entries["td3"]}).entries == {"td3": entries["td3"]}
-    monkeypatch.setattr(procedural, "stale_entries", lambda metadata: [])
+    monkeypatch.setattr(procedural, "stale_entries", lambda metadata, algos=None: [])
     assert ledger({"td3": entries["td3"]}).kept == 4
     # Another protocol (another model scored, other test sets) or --rescore: no run is kept.
     assert ledger(protocol={**protocol, "courses": ["other"]}).kept == 0
