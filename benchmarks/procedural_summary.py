@@ -89,6 +89,7 @@ COMPARISONS: list[tuple[Side, Side]] = [
     ((SHIPPED, "adc"), (SHIPPED, "ddpg")),
     ((SHIPPED, "td3"), AVERAGE_TD3_300K),
     ((SHIPPED, "adc"), (SHIPPED, "td3")),
+    ((SHIPPED, "adc"), (SHIPPED, "sac")),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
@@ -364,7 +365,8 @@ def plot(summary: pd.DataFrame, path: Path) -> None:
     """Both test sets side by side, one row per grid and algorithm, IQM with its 95% CI and the 90% target."""
     colors = algo_colors(ALGOS) | {"planner": (0.3, 0.3, 0.3, 1.0)}
     labels = list(dict.fromkeys(zip(summary["grid"], summary["algo"], strict=True)))
-    figure, axes = plt.subplots(1, 2, figsize=(13, 0.32 * len(labels) + 1.6), sharey=True)
+    # Constrained layout leaves the suptitle its own row (tight_layout drew it over the panels' titles).
+    figure, axes = plt.subplots(1, 2, figsize=(13, 0.32 * len(labels) + 1.6), sharey=True, layout="constrained")
     for ax, test_set in zip(axes, (HELD_OUT, COURSE_FILES), strict=True):
         table = summary[summary["test_set"] == test_set].set_index(["grid", "algo"])
         for position, label in enumerate(labels):
@@ -380,7 +382,7 @@ def plot(summary: pd.DataFrame, path: Path) -> None:
         )
         ax.grid(alpha=0.3, axis="x")
     axes[0].set_yticks(range(len(labels)), [f"{grid}: {display_name(algo)}" for grid, algo in labels], fontsize="small")
-    axes[0].invert_yaxis()
+    axes[0].set_ylim(len(labels) - 0.5, -0.5)  # one row per label, the first at the top, no empty margin
     handles = [
         plt.Line2D(
             [], [], color=colors[algo], marker="D" if algo == "planner" else "o", linestyle="", label=display_name(algo)
@@ -391,7 +393,6 @@ def plot(summary: pd.DataFrame, path: Path) -> None:
     figure.suptitle(
         "Procedural lidar course: success on layouts and course files never trained on (learners: 10 fresh seeds each)"
     )
-    figure.tight_layout()
     figure.savefig(path, dpi=120)
     plt.close(figure)
 
