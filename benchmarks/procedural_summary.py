@@ -34,7 +34,16 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import pandas as pd
-from procedural_generalisation import ALGOS, DOCS_STATIC, HELD_OUT, RESULTS_DIR, SIGHTING, VALIDATION_BEST, held_out_courses
+from procedural_generalisation import (
+    ALGOS,
+    DOCS_STATIC,
+    HELD_OUT,
+    RESULTS_DIR,
+    SIGHTING,
+    VALIDATION_BEST,
+    held_out_courses,
+    read_table,
+)
 from procedural_generalisation import HITS as HIT_KINDS
 
 from sb3_adc.experiment.plots import algo_colors, display_name
@@ -113,6 +122,18 @@ COLUMNS = [
 ]
 
 
+def read(path: Path) -> pd.DataFrame:
+    """
+    A committed table, its floats read back exactly as written (:func:`procedural_generalisation.read_table`):
+    pandas' default parser can land one unit in the last place off, and a rate such as 0.9249999999999999 then
+    prints as 0.93 here and as 0.92 in the grid's own ``success_rates.md``.
+    """
+    table = read_table(path)
+    if table is None:
+        raise FileNotFoundError(path)
+    return table
+
+
 def grids(results: Path) -> list[Path]:
     """The grids' folders: those with a ``success.csv``, in name order."""
     return sorted(path.parent for path in results.glob("*/success.csv"))
@@ -144,9 +165,9 @@ def course_file_rates(success: pd.DataFrame) -> pd.DataFrame:
 def summarise_grid(folder: Path) -> pd.DataFrame:
     """The rows of one grid (see the module's docstring)."""
     metadata = json.loads((folder / "metadata.json").read_text())
-    success = pd.read_csv(folder / "success.csv")
-    timesteps = pd.read_csv(folder / "final.csv").groupby("algo")["timesteps"].max()
-    held_out = pd.read_csv(folder / "success_rates.csv")
+    success = read(folder / "success.csv")
+    timesteps = read(folder / "final.csv").groupby("algo")["timesteps"].max()
+    held_out = read(folder / "success_rates.csv")
     held_out = held_out[held_out["test_set"] == HELD_OUT]
     files = course_file_rates(success)
     performance = final_performance(
@@ -188,7 +209,7 @@ def summarise_grid(folder: Path) -> pd.DataFrame:
 
 def planner_rows(results: Path) -> pd.DataFrame:
     """The reference planner's rates on both test sets, one row per observation, robot and lidar."""
-    planner = pd.read_csv(results / "reference_planner.csv")
+    planner = read(results / "reference_planner.csv")
     rows = []
     for (env, robot, rays_per_reading), group in planner.groupby(["env", "robot", "rays_per_reading"], sort=True):
         lidar = "" if rays_per_reading == 1 else f", {rays_per_reading} rays per reading"
@@ -226,7 +247,7 @@ def side_rates(results: Path, side: Side) -> pd.DataFrame | None:
     grid, algo = (side, None) if isinstance(side, str) else side
     if not (results / grid / "success.csv").exists():
         return None
-    rates = success_rates_per_run(pd.read_csv(results / grid / "success.csv"))
+    rates = success_rates_per_run(read(results / grid / "success.csv"))
     if algo is None:
         algos = sorted(set(rates["algo"]))
         if len(algos) > 1:
