@@ -41,7 +41,8 @@ unseen by either.
 Training is ``sb3-adc benchmark``'s engine (resumable, one process per run, same seeds and evaluation for every
 algorithm); the runs go to ``benchmarks/runs/procedural_generalisation/`` (not committed), the tables to
 ``benchmarks/results/procedural_generalisation/{name}/``. Each run is scored as soon as it is trained and kept in
-the tables at once (those of an algorithm with seeds still to score in ``pending/``, out of the statistics): a
+the tables at once (those of an algorithm with seeds still to score in ``pending/``, out of the statistics); the
+statistics and figures are written as soon as an algorithm's last run is scored, and when the invocation ends. A
 re-run keeps the scored runs whose entry is current, without their run folders, and trains and scores the others
 (:class:`ScoredRuns`; ``--rescore`` scores every run again). The figures go to
 ``docs/_static/benchmarks/procedural_generalisation_{name}.png`` (success rates) and
@@ -287,6 +288,7 @@ def training_record(
     algos: list[str] | None = None,
     runs_folder: Path | None = None,
     kept: bool = False,
+    earlier: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """
     The training facts to record in ``output/metadata.json``: ``training_invocations``, one entry per invocation
@@ -310,9 +312,12 @@ def training_record(
     :param algos: The algorithms of this invocation (``None``: every algorithm of the grid)
     :param runs_folder: The folder of the grid's run folders (one per algorithm or configuration)
     :param kept: Whether the grid kept runs scored before
+    :param earlier: The metadata holding the record before this invocation (default: ``output/metadata.json`` as it
+        is); an invocation that writes its results more than once passes the one it started with
     """
-    previous = output / "metadata.json"
-    earlier = json.loads(previous.read_text()) if previous.exists() else {}
+    if earlier is None:
+        previous = output / "metadata.json"
+        earlier = json.loads(previous.read_text()) if previous.exists() else {}
     journals = sorted(runs_folder.glob(f"*/{INVOCATIONS_JSON}")) if runs_folder is not None else []
     recorded = read_invocations(str(path.parent) for path in journals)
     if recorded:
@@ -745,6 +750,42 @@ def plot_paths(trajectories: pd.DataFrame, env_id: str, robot: str, path: Path, 
     plot_trajectories(trajectories, courses, str(path), title=title)
 
 
+def write_statistics(ledger: ScoredRuns, env_id: str, robot: str, which: str, reps: int, figures: str | None) -> list[str]:
+    """
+    Write the statistics of the grid's complete algorithms (:meth:`ScoredRuns.complete`, their every seed scored) to
+    its results folder: ``success_rates.csv`` and ``success_rates.md`` (IQM and mean success rate per algorithm and
+    test set, 95% stratified-bootstrap CIs), ``probability_of_improvement.csv`` and the figures of the success rates
+    and of the paths on held-out layouts.
+
+    :param which: The model scored (``final`` or ``best``), named in the paths' figure
+    :param reps: Bootstrap replications
+    :param figures: The name the figures take in ``docs/_static/benchmarks/`` (``None``: left in the results folder)
+    :return: The lines of ``success_rates.md``
+    """
+    output = ledger.output
+    algos = ledger.complete()
+    scores = ledger.table(SUCCESS_CSV, algos)
+    paths_figure = output / "trajectories.png"
+    plot_paths(ledger.table(TRAJECTORIES_CSV, algos), env_id, robot, paths_figure, which)
+    figure = output / "success_rates.png"
+    performance = plot(scores, figure, reps)
+    performance.rename(columns={"env": "test_set"}).to_csv(output / "success_rates.csv", index=False)
+    improvement = probability_of_improvement(as_scores(scores), reps=reps)
+    improvement.to_csv(output / "probability_of_improvement.csv", index=False)
+    if figures is not None:
+        DOCS_STATIC.mkdir(parents=True, exist_ok=True)
+        os.replace(figure, DOCS_STATIC / f"procedural_generalisation_{figures}.png")
+        os.replace(paths_figure, DOCS_STATIC / f"procedural_trajectories_{figures}.png")
+    lines = ["| test set | algorithm | runs | success rate IQM [95% CI] | mean [95% CI] |", "|---|---|---:|---|---|"]
+    for row in performance.itertuples(index=False):
+        lines.append(
+            f"| {row.env} | {row.algo} | {row.n_runs} | {row.iqm:.2f} [{row.iqm_ci_low:.2f}, {row.iqm_ci_high:.2f}] "
+            f"| {row.mean:.2f} [{row.mean_ci_low:.2f}, {row.mean_ci_high:.2f}] |"
+        )
+    (output / "success_rates.md").write_text("\n".join(lines) + "\n")
+    return lines
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--env", default="sb3_adc/LidarObstacleCourse-v1", help="the procedural environment id")
@@ -875,8 +916,44 @@ def main() -> None:
     }
     ledger.metadata = {**earlier, **description}
     start = time.perf_counter()
-    evaluations, statuses = [], Counter[str]()
+    evaluations: list[pd.DataFrame] = []
+    statuses = Counter[str]()
     scoring_start, scored = None, 0
+    # The training record before this invocation (it rewrites the metadata each time it writes the results).
+    record_path = RESULTS_DIR / runs_name / "metadata.json"
+    record_before = json.loads(record_path.read_text()) if record_path.exists() else {}
+
+    def write_results() -> None:
+        """The statistics of the grid's complete algorithms and ``metadata.json`` with the training so far: written
+        when an algorithm's last run is scored (the results folder never holds scored runs that its statistics
+        leave out) and when the invocation ends."""
+        scoring_s = time.perf_counter() - scoring_start if scoring_start is not None else None
+        # The training of the grid (recorded beside its final models when `--model best` finds every run finished).
+        elapsed = time.perf_counter() - start
+        training = training_record(
+            RESULTS_DIR / runs_name, statuses, elapsed, args.workers, args.algos, folder, bool(ledger.kept), record_before
+        )
+        if args.validation and evaluations:  # beside the training record: the runs' evaluations, whichever model is scored
+            path = RESULTS_DIR / runs_name / VALIDATION_CSV
+            new = validation_table(pd.concat(evaluations, ignore_index=True))
+            write_table(replace_runs(read_table(path), new, list(ledger.entries)), path)
+        lines = write_statistics(ledger, args.env, args.robot, args.model, reps, None if args.quick else name)
+        metadata = {
+            "env": args.env,
+            "robot": args.robot,
+            "algos": ledger.complete(),
+            **{key: value for key, value in description.items() if key not in ("env", "robot")},
+            **training,
+            "runs_this_invocation": dict(sorted((statuses + Counter(kept=ledger.kept)).items())),
+            "scoring_wall_time_s": round(scoring_s, 1) if scoring_s is not None else earlier.get("scoring_wall_time_s"),
+            "workers": args.workers,
+            "bootstrap_reps": reps,
+            **machine_metadata(),
+        }
+        ledger.write(metadata)
+        print("\n".join(lines), flush=True)
+
+    written = False  # whether the results written last are current
     with ProcessPoolExecutor(max_workers=args.workers) as scoring:
         # Each run is scored as soon as it is trained (or found finished), beside the training, and kept (written)
         # as soon as it is scored, by the scoring's callback thread; each of `writes` completes once its run is written.
@@ -925,6 +1002,7 @@ def main() -> None:
             missing = ledger.missing(algo)
             if not missing:
                 continue
+            written = False
             settings = BenchmarkSettings(
                 algos=[algo],
                 env_ids=[args.env],
@@ -946,51 +1024,13 @@ def main() -> None:
             if result.failures:
                 collect()
                 raise SystemExit(f"{len(result.failures)} runs of {algo} failed; re-run to retry them")
+            collect()  # the algorithm's last runs scored: its statistics before the next algorithm trains
+            if algo in ledger.complete():
+                write_results()
+                written = True
         collect()
-    scoring_s = time.perf_counter() - scoring_start if scoring_start is not None else None
-    # The training of the grid (recorded beside its final models when `--model best` finds every run finished).
-    elapsed = time.perf_counter() - start
-    training = training_record(RESULTS_DIR / runs_name, statuses, elapsed, args.workers, args.algos, folder, bool(ledger.kept))
-    if args.validation and evaluations:  # beside the training record: the runs' evaluations, whichever model is scored
-        path = RESULTS_DIR / runs_name / VALIDATION_CSV
-        new = validation_table(pd.concat(evaluations, ignore_index=True))
-        write_table(replace_runs(read_table(path), new, list(ledger.entries)), path)
-    algos = ledger.complete()
-    scores = ledger.table(SUCCESS_CSV, algos)
-    trajectories = ledger.table(TRAJECTORIES_CSV, algos)
-    paths_figure = output / "trajectories.png"
-    plot_paths(trajectories, args.env, args.robot, paths_figure, args.model)
-    figure = output / "success_rates.png"
-    performance = plot(scores, figure, reps)
-    performance.rename(columns={"env": "test_set"}).to_csv(output / "success_rates.csv", index=False)
-    table = as_scores(scores)
-    improvement = probability_of_improvement(table, reps=reps)
-    improvement.to_csv(output / "probability_of_improvement.csv", index=False)
-    if not args.quick:
-        DOCS_STATIC.mkdir(parents=True, exist_ok=True)
-        os.replace(figure, DOCS_STATIC / f"procedural_generalisation_{name}.png")
-        os.replace(paths_figure, DOCS_STATIC / f"procedural_trajectories_{name}.png")
-    lines = ["| test set | algorithm | runs | success rate IQM [95% CI] | mean [95% CI] |", "|---|---|---:|---|---|"]
-    for row in performance.itertuples(index=False):
-        lines.append(
-            f"| {row.env} | {row.algo} | {row.n_runs} | {row.iqm:.2f} [{row.iqm_ci_low:.2f}, {row.iqm_ci_high:.2f}] "
-            f"| {row.mean:.2f} [{row.mean_ci_low:.2f}, {row.mean_ci_high:.2f}] |"
-        )
-    (output / "success_rates.md").write_text("\n".join(lines) + "\n")
-    metadata = {
-        "env": args.env,
-        "robot": args.robot,
-        "algos": algos,
-        **{key: value for key, value in description.items() if key not in ("env", "robot")},
-        **training,
-        "runs_this_invocation": dict(sorted((statuses + Counter(kept=ledger.kept)).items())),
-        "scoring_wall_time_s": round(scoring_s, 1) if scoring_s is not None else earlier.get("scoring_wall_time_s"),
-        "workers": args.workers,
-        "bootstrap_reps": reps,
-        **machine_metadata(),
-    }
-    ledger.write(metadata)
-    print("\n".join(lines))
+    if not written:
+        write_results()
 
 
 if __name__ == "__main__":

@@ -287,8 +287,10 @@ def test_the_training_record_follows_the_invocations_that_trained(scripts, tmp_p
     added = procedural.training_record(tmp_path, Counter(trained=10, skipped=10), 500.04, 2)
     second = {"wall_time_s": 500.0, "workers": 2, "runs": {"skipped": 10, "trained": 10}}
     assert added == {"training_wall_time_s": 1578.3, "training_workers": 2, "training_invocations": [first, second]}
-    # Training every run anew: a new record.
+    # The same invocation writing its results again (its metadata holds it now): counted from the record it found.
     metadata.write_text(json.dumps(added))
+    assert procedural.training_record(tmp_path, Counter(trained=10, skipped=10), 500.04, 2, earlier=scored) == added
+    # Training every run anew: a new record.
     anew = procedural.training_record(tmp_path, Counter(trained=20), 7.0, 1)
     assert anew == {
         "training_wall_time_s": 7.0,
@@ -477,6 +479,33 @@ def test_a_grid_whose_run_folders_are_gone_keeps_its_scored_runs(script_main, tm
     script_main("procedural_generalisation", "run_benchmark", no_training, argv).main()
     assert {name: (output / name).read_bytes() for name in tables} == tables
     assert json.loads((output / "metadata.json").read_text())["runs_this_invocation"] == {"kept": 2}
+
+
+def test_an_algorithms_statistics_are_written_when_its_last_run_is_scored(script_main, tmp_path):
+    """A grid stopped while its next algorithm trains (Ctrl-C, a lost machine): the algorithm whose every run was
+    scored before has its statistics, figures and training record in the results folder, beside its runs."""
+    from sb3_adc.experiment.benchmark import run_benchmark as engine
+
+    def stopped_at_ddpg(settings, **kwargs):
+        if settings.algos == ["ddpg"]:
+            raise KeyboardInterrupt
+        return engine(settings, **kwargs)
+
+    argv = ["--quick", "--algos", "td3", "ddpg", "--workers", "1", "--reps", "50"]
+    with pytest.raises(KeyboardInterrupt):
+        script_main("procedural_generalisation", "run_benchmark", stopped_at_ddpg, argv).main()
+    output = tmp_path / "results" / "LidarObstacleCourse-v1_quick"
+    metadata = json.loads((output / "metadata.json").read_text())
+    assert metadata["algos"] == ["td3"]
+    assert [entry["algos"] for entry in metadata["training_invocations"]] == [["td3"]]
+    assert metadata["runs_this_invocation"] == {"trained": 2}
+    rates = pd.read_csv(output / "success_rates.csv")
+    assert set(rates["algo"]) == {"td3"}
+    assert set(rates["n_runs"]) == {2}
+    assert (output / "probability_of_improvement.csv").exists()
+    assert (output / "success_rates.png").exists()
+    assert (output / "trajectories.png").exists()
+    assert (output / "success_rates.md").read_text().count("| td3 | 2 |") == len(rates)
 
 
 def test_the_training_record_keeps_the_invocations_of_kept_runs_trained_elsewhere(scripts, tmp_path):
