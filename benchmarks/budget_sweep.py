@@ -69,6 +69,7 @@ from sb3_adc.experiment.benchmark import BenchmarkSettings, RunSpec, run_benchma
 from sb3_adc.experiment.layout import RunLayout
 from sb3_adc.experiment.plots import plot_learning_curves
 from sb3_adc.experiment.provenance import machine_metadata
+from sb3_adc.experiment.results import read_table
 from sb3_adc.experiment.statistics import learning_curves
 from sb3_adc_envs.lidar_course.env import VALIDATION_LAYOUT_SEEDS
 
@@ -213,7 +214,7 @@ def main() -> None:
     output = RESULTS_DIR / name
     figure = DOCS_STATIC / f"budget_sweep_{name}.png"
     if args.replot:
-        plot(summarise(pd.read_csv(output / "sweep.csv"), reps), figure, args.env, args.algo)
+        plot(summarise(read_table(output / "sweep.csv"), reps), figure, args.env, args.algo)
         print(f"wrote {figure}")
         return
     output.mkdir(parents=True, exist_ok=True)

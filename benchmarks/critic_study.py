@@ -63,6 +63,7 @@ from sb3_adc.experiment.benchmark import (
 )
 from sb3_adc.experiment.plots import plot_results
 from sb3_adc.experiment.provenance import machine_metadata
+from sb3_adc.experiment.results import read_table
 from sb3_adc.experiment.statistics import CONFIDENCE, time_to_threshold
 
 ROOT = Path(__file__).resolve().parent
@@ -319,7 +320,7 @@ def merge(tables: dict[str, dict[str, str]], table: str) -> pd.DataFrame:
     """One table of every configuration, with the configuration's name in the ``algo`` column."""
     frames = []
     for name, paths in tables.items():
-        frame = pd.read_csv(paths[table])
+        frame = read_table(paths[table])
         frame["algo"] = name
         frames.append(frame)
     return pd.concat(frames, ignore_index=True)

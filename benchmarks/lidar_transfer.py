@@ -298,12 +298,13 @@ def plot_learning_curves(results_dir: Path, path: Path) -> None:
     import pandas as pd
 
     from sb3_adc.experiment.plots import display_name
+    from sb3_adc.experiment.results import read_table
     from sb3_adc.experiment.statistics import learning_curves
 
     frames = []
     for curve_csv in sorted(results_dir.glob("*/learning_curve.csv")):
         config, _, seed = curve_csv.parent.name.rpartition("_seed")
-        frame = pd.read_csv(curve_csv)
+        frame = read_table(curve_csv)
         frames.append(frame.assign(algo=config, env="training course", seed=int(seed), mean_return=frame["mean_steps"]))
     evaluations = pd.concat(frames, ignore_index=True)
     curves = learning_curves(evaluations, reps=2000, seed=0)

@@ -46,6 +46,7 @@ from sb3_adc.experiment.benchmark import (
 )
 from sb3_adc.experiment.plots import plot_results
 from sb3_adc.experiment.provenance import machine_metadata
+from sb3_adc.experiment.results import read_table
 
 ROOT = Path(__file__).resolve().parent
 RUNS_DIR = ROOT / "runs" / "paper_pendulum"
@@ -97,12 +98,12 @@ def run_grid(name: str, seeds: int, workers: int, n_timesteps: int | None, reps:
     output.mkdir(parents=True, exist_ok=True)
     for table in (EVALUATIONS_CSV, EPISODES_CSV, FINAL_CSV):
         shutil.copy(result.tables[table], output / table)
-    evaluations = pd.read_csv(output / EVALUATIONS_CSV)
+    evaluations = read_table(output / EVALUATIONS_CSV)
     plots = plot_results(
         evaluations,
         str(output),
-        final=pd.read_csv(output / FINAL_CSV),
-        episodes=pd.read_csv(output / EPISODES_CSV),
+        final=read_table(output / FINAL_CSV),
+        episodes=read_table(output / EPISODES_CSV),
         reps=reps,
     )
     trained = sum(outcome.status != "skipped" for outcome in result.outcomes)
@@ -127,7 +128,7 @@ def run_grid(name: str, seeds: int, workers: int, n_timesteps: int | None, reps:
         for figure in plots.figures:
             # The figures are committed once, with the docs.
             shutil.move(figure, DOCS_STATIC / f"paper_{name}_{Path(figure).name}")
-    performance = pd.read_csv(output / "final_performance.csv")
+    performance = read_table(output / "final_performance.csv")
     print(f"\n{name}: final return over 20 deterministic episodes per run ({len(settings.seeds)} seeds)")
     print((output / "final_performance.md").read_text())
     return performance

@@ -98,6 +98,7 @@ from sb3_adc.experiment.enjoy import load_model, load_run, model_path
 from sb3_adc.experiment.invocations import INVOCATIONS_JSON, read_invocations
 from sb3_adc.experiment.plots import plot_final_performance, plot_trajectories
 from sb3_adc.experiment.provenance import machine_metadata
+from sb3_adc.experiment.results import read_table
 from sb3_adc.experiment.settings import TrainSettings
 from sb3_adc.experiment.statistics import final_performance, probability_of_improvement
 from sb3_adc_envs.lidar_course import Course
@@ -585,9 +586,9 @@ def write_table(table: pd.DataFrame, path: Path) -> None:
     write_atomically(path, lambda stream: stream.write(data), binary=True)
 
 
-def read_table(path: Path) -> pd.DataFrame | None:
-    """A table of runs, ``None`` where there is none; its floats read back exactly as written."""
-    return pd.read_csv(path, float_precision="round_trip") if path.exists() else None
+def read_if_present(path: Path) -> pd.DataFrame | None:
+    """A table of runs (:func:`~sb3_adc.experiment.results.read_table`), ``None`` where there is none."""
+    return read_table(path) if path.exists() else None
 
 
 def runs_of(table: pd.DataFrame) -> set[tuple[str, int]]:
@@ -661,7 +662,11 @@ class ScoredRuns:
         }
         tables = {}
         for name in RUN_TABLES:
-            found = [table for table in (read_table(output / name), read_table(output / PENDING / name)) if table is not None]
+            found = [
+                table
+                for table in (read_if_present(output / name), read_if_present(output / PENDING / name))
+                if table is not None
+            ]
             table = pd.concat(found, ignore_index=True) if found else pd.DataFrame(columns=["algo", "seed"])
             tables[name] = table[table["algo"].isin(valid) & table["seed"].isin(seeds)]
         # A run counts as scored where both its scores and its final evaluation are there.
@@ -852,11 +857,11 @@ def main() -> None:
     output = RESULTS_DIR / name
     if args.replot:
         figure = DOCS_STATIC / f"procedural_generalisation_{name}.png"
-        plot(pd.read_csv(output / SUCCESS_CSV), figure, reps)
+        plot(read_table(output / SUCCESS_CSV), figure, reps)
         print(f"wrote {figure}")
         if (output / TRAJECTORIES_CSV).exists():
             paths_figure = DOCS_STATIC / f"procedural_trajectories_{name}.png"
-            plot_paths(pd.read_csv(output / TRAJECTORIES_CSV), args.env, args.robot, paths_figure, args.model)
+            plot_paths(read_table(output / TRAJECTORIES_CSV), args.env, args.robot, paths_figure, args.model)
             print(f"wrote {paths_figure}")
         return
     output.mkdir(parents=True, exist_ok=True)
@@ -936,7 +941,7 @@ def main() -> None:
         if args.validation and evaluations:  # beside the training record: the runs' evaluations, whichever model is scored
             path = RESULTS_DIR / runs_name / VALIDATION_CSV
             new = validation_table(pd.concat(evaluations, ignore_index=True))
-            write_table(replace_runs(read_table(path), new, list(ledger.entries)), path)
+            write_table(replace_runs(read_if_present(path), new, list(ledger.entries)), path)
         lines = write_statistics(ledger, args.env, args.robot, args.model, reps, None if args.quick else name)
         metadata = {
             "env": args.env,
@@ -1019,7 +1024,7 @@ def main() -> None:
             )
             result = run_benchmark(settings, workers=args.workers, report=on_run)
             statuses.update(outcome.status for outcome in result.outcomes)
-            table = pd.read_csv(result.tables[EVALUATIONS_CSV])
+            table = read_table(result.tables[EVALUATIONS_CSV])
             evaluations.append(table[table["seed"].isin(missing)])
             if result.failures:
                 collect()

@@ -42,11 +42,11 @@ from procedural_generalisation import (
     SIGHTING,
     VALIDATION_BEST,
     held_out_courses,
-    read_table,
 )
 from procedural_generalisation import HITS as HIT_KINDS
 
 from sb3_adc.experiment.plots import algo_colors, display_name
+from sb3_adc.experiment.results import read_table
 from sb3_adc.experiment.statistics import FINAL_PERFORMANCE_COLUMNS, final_performance, probability_of_improvement
 from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS
 
@@ -122,18 +122,6 @@ COLUMNS = [
 ]
 
 
-def read(path: Path) -> pd.DataFrame:
-    """
-    A committed table, its floats read back exactly as written (:func:`procedural_generalisation.read_table`):
-    pandas' default parser can land one unit in the last place off, and a rate such as 0.9249999999999999 then
-    prints as 0.93 here and as 0.92 in the grid's own ``success_rates.md``.
-    """
-    table = read_table(path)
-    if table is None:
-        raise FileNotFoundError(path)
-    return table
-
-
 def grids(results: Path) -> list[Path]:
     """The grids' folders: those with a ``success.csv``, in name order."""
     return sorted(path.parent for path in results.glob("*/success.csv"))
@@ -165,9 +153,9 @@ def course_file_rates(success: pd.DataFrame) -> pd.DataFrame:
 def summarise_grid(folder: Path) -> pd.DataFrame:
     """The rows of one grid (see the module's docstring)."""
     metadata = json.loads((folder / "metadata.json").read_text())
-    success = read(folder / "success.csv")
-    timesteps = read(folder / "final.csv").groupby("algo")["timesteps"].max()
-    held_out = read(folder / "success_rates.csv")
+    success = read_table(folder / "success.csv")
+    timesteps = read_table(folder / "final.csv").groupby("algo")["timesteps"].max()
+    held_out = read_table(folder / "success_rates.csv")
     held_out = held_out[held_out["test_set"] == HELD_OUT]
     files = course_file_rates(success)
     performance = final_performance(
@@ -209,7 +197,7 @@ def summarise_grid(folder: Path) -> pd.DataFrame:
 
 def planner_rows(results: Path) -> pd.DataFrame:
     """The reference planner's rates on both test sets, one row per observation, robot and lidar."""
-    planner = read(results / "reference_planner.csv")
+    planner = read_table(results / "reference_planner.csv")
     rows = []
     for (env, robot, rays_per_reading), group in planner.groupby(["env", "robot", "rays_per_reading"], sort=True):
         lidar = "" if rays_per_reading == 1 else f", {rays_per_reading} rays per reading"
@@ -247,7 +235,7 @@ def side_rates(results: Path, side: Side) -> pd.DataFrame | None:
     grid, algo = (side, None) if isinstance(side, str) else side
     if not (results / grid / "success.csv").exists():
         return None
-    rates = success_rates_per_run(read(results / grid / "success.csv"))
+    rates = success_rates_per_run(read_table(results / grid / "success.csv"))
     if algo is None:
         algos = sorted(set(rates["algo"]))
         if len(algos) > 1:

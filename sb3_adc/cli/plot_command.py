@@ -12,7 +12,7 @@ import pandas as pd
 
 from sb3_adc.cli.common import CommandError
 from sb3_adc.experiment.benchmark import EPISODES_CSV, FINAL_CSV
-from sb3_adc.experiment.results import EVALUATION_COLUMNS
+from sb3_adc.experiment.results import EVALUATION_COLUMNS, read_table
 
 DESCRIPTION = """\
 Plot the results of `sb3-adc benchmark` with rliable statistics (95% stratified-bootstrap CIs):
@@ -63,7 +63,7 @@ def _read(path: str | None, default: str, required_columns: tuple[str, ...]) -> 
         return None
     if not os.path.isfile(path):
         raise CommandError(f"{path} does not exist")
-    table = pd.read_csv(path)
+    table = read_table(path)
     missing = [column for column in required_columns if column not in table.columns]
     if missing:
         raise CommandError(f"{path} lacks the columns {', '.join(missing)} (is it a table written by sb3-adc benchmark?)")

@@ -6,7 +6,7 @@ import pytest
 from scipy.stats import trim_mean
 
 from sb3_adc.experiment.plots import plot_results
-from sb3_adc.experiment.results import training_seconds
+from sb3_adc.experiment.results import read_table, training_seconds
 from sb3_adc.experiment.statistics import (
     episode_variance,
     evaluation_times,
@@ -132,6 +132,17 @@ def test_plot_results_writes_every_output(tmp_path):
         assert (tmp_path / path.rsplit("/", 1)[1]).stat().st_size > 10_000
     with pytest.raises(ValueError, match="no evaluations to plot"):
         plot_results(synthetic_evaluations().iloc[:0], str(tmp_path))
+
+
+@pytest.mark.parametrize("name", ["table.csv", "table.csv.gz"])
+def test_tables_are_read_back_with_the_floats_written(tmp_path, name):
+    """A statistic computed from a table read back prints as it printed when the table was written: 0.925 read
+    for 0.9249999999999999 (pandas' default parser) moves a two-decimal IQM from 0.92 to 0.93."""
+    rates = [0.9249999999999999, 0.1 + 0.2, 1 / 3, 2.675]
+    pd.DataFrame({"algo": "adc", "seed": range(4), "success_rate": rates}).to_csv(tmp_path / name, index=False)
+    table = read_table(tmp_path / name)
+    assert table["success_rate"].tolist() == rates
+    assert table["seed"].tolist() == [0, 1, 2, 3]
 
 
 def test_training_seconds_continue_across_a_resume():
