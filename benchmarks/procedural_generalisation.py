@@ -1026,14 +1026,12 @@ def main() -> None:
             statuses.update(outcome.status for outcome in result.outcomes)
             table = read_table(result.tables[EVALUATIONS_CSV])
             evaluations.append(table[table["seed"].isin(missing)])
+            collect()  # the algorithm's runs scored: its statistics before the next algorithm trains
             if result.failures:
-                collect()
                 raise SystemExit(f"{len(result.failures)} runs of {algo} failed; re-run to retry them")
-            collect()  # the algorithm's last runs scored: its statistics before the next algorithm trains
             if algo in ledger.complete():
                 write_results()
                 written = True
-        collect()
     if not written:
         write_results()
 
