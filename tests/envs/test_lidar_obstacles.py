@@ -89,7 +89,10 @@ def test_obstacles_must_be_a_list(tmp_path):
 
 
 def test_an_obstacle_just_far_enough_from_the_start_is_accepted():
-    course_from_dict(loop_with({"shape": "cylinder", "position": [4.25, 0], "radius": 0.2}))
+    # 1.05 m from the start to the cylinder's surface: past the 1 m kept free (0.95 m is refused above).
+    course = course_from_dict(loop_with({"shape": "cylinder", "position": [4.25, 0], "radius": 0.2}))
+    (cylinder,) = course.obstacles
+    assert cylinder.distance(3.0, 0.0) == pytest.approx(1.05)
 
 
 def test_obstacles_in_a_walls_only_course_must_be_in_the_start_region(tmp_path):
