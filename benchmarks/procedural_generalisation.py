@@ -928,16 +928,20 @@ def main() -> None:
     record_path = RESULTS_DIR / runs_name / "metadata.json"
     record_before = json.loads(record_path.read_text()) if record_path.exists() else {}
 
+    def training_so_far() -> dict[str, Any]:
+        """The training record of the grid up to now (:func:`training_record`)."""
+        elapsed = time.perf_counter() - start
+        return training_record(
+            RESULTS_DIR / runs_name, statuses, elapsed, args.workers, args.algos, folder, bool(ledger.kept), record_before
+        )
+
     def write_results() -> None:
         """The statistics of the grid's complete algorithms and ``metadata.json`` with the training so far: written
         when an algorithm's last run is scored (the results folder never holds scored runs that its statistics
         leave out) and when the invocation ends."""
         scoring_s = time.perf_counter() - scoring_start if scoring_start is not None else None
         # The training of the grid (recorded beside its final models when `--model best` finds every run finished).
-        elapsed = time.perf_counter() - start
-        training = training_record(
-            RESULTS_DIR / runs_name, statuses, elapsed, args.workers, args.algos, folder, bool(ledger.kept), record_before
-        )
+        training = training_so_far()
         if args.validation and evaluations:  # beside the training record: the runs' evaluations, whichever model is scored
             path = RESULTS_DIR / runs_name / VALIDATION_CSV
             new = validation_table(pd.concat(evaluations, ignore_index=True))
@@ -971,6 +975,10 @@ def main() -> None:
                 with lock:
                     scored += 1
                     print(f"scored {scored}: {scored_line(final['algo'], final['seed'], rows)}", flush=True)
+                    # The training so far is kept with the run: the invocations' journals live in the run folders,
+                    # which go with the machine, while a kept run's results are committed (`training_record`
+                    # keeps the invocations metadata.json holds that no journal here does).
+                    ledger.metadata = {**ledger.metadata, **training_so_far()}
                     ledger.add(final, rows, paths)
                 written.set_result(None)
             except BaseException as error:  # raised by the main thread (`collect`)

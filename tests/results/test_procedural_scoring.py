@@ -4,6 +4,7 @@ jitter and reports one row per test set."""
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import json
 import sys
@@ -506,6 +507,37 @@ def test_an_algorithms_statistics_are_written_when_its_last_run_is_scored(script
     assert (output / "success_rates.png").exists()
     assert (output / "trajectories.png").exists()
     assert (output / "success_rates.md").read_text().count("| td3 | 2 |") == len(rates)
+
+
+def test_a_run_kept_before_its_machine_is_lost_keeps_the_training_that_made_it(script_main, tmp_path):
+    """End to end: a grid stopped after scoring the first of an algorithm's runs (kept as a pending run), whose run
+    folders, and with them the engine's journal of invocations, are then lost with the machine. The next invocation
+    trains the other run; the training record holds both invocations, the lost one as the pending run recorded it."""
+    from sb3_adc.experiment.benchmark import run_benchmark as engine
+
+    def first_seed_then_stopped(settings, **kwargs):
+        engine(dataclasses.replace(settings, seeds=settings.seeds[:1]), **kwargs)
+        raise KeyboardInterrupt
+
+    argv = ["--quick", "--algos", "td3", "--workers", "1", "--reps", "50"]
+    with pytest.raises(KeyboardInterrupt):
+        script_main("procedural_generalisation", "run_benchmark", first_seed_then_stopped, argv).main()
+    output = tmp_path / "results" / "LidarObstacleCourse-v1_quick"
+    metadata = json.loads((output / "metadata.json").read_text())
+    assert metadata["pending_runs"] == {"td3": [1000]}
+    (lost,) = metadata["training_invocations"]
+    assert (lost["algos"], lost["runs"]["trained"]) == (["td3"], 1)
+    assert lost["wall_time_s"] > 0
+    for path in sorted((tmp_path / "runs").rglob("*"), reverse=True):
+        path.unlink() if path.is_file() else path.rmdir()
+
+    script_main("procedural_generalisation", "run_benchmark", engine, argv).main()
+    metadata = json.loads((output / "metadata.json").read_text())
+    assert "pending_runs" not in metadata
+    first, second = metadata["training_invocations"]
+    assert first == lost
+    assert (second["algos"], second["runs"]["trained"], second["finished"]) == (["td3"], 1, True)
+    assert metadata["training_wall_time_s"] == pytest.approx(first["wall_time_s"] + second["wall_time_s"], abs=0.1)
 
 
 def test_the_training_record_keeps_the_invocations_of_kept_runs_trained_elsewhere(scripts, tmp_path):
