@@ -75,8 +75,9 @@ AVERAGE_ADC = "LidarObstacleCourse-v1_n_step_150k_sectors_average_validation"
 AVERAGE_TD3 = "LidarObstacleCourse-v1_n_step_td3_150k_sectors_average_validation"
 AVERAGE_ADC_300K = "LidarObstacleCourse-v1_n_step_300k_sectors_average_validation"
 AVERAGE_TD3_300K = "LidarObstacleCourse-v1_n_step_td3_300k_sectors_average_validation"
-#: The grid of the four shipped ``-v1`` entries (clean observations, kinematic robot).
+#: The grids of the four shipped ``-v1`` entries: clean observations, and noisy observations (kinematic robot).
 SHIPPED = "LidarObstacleCourse-v1"
+SHIPPED_NOISY = "LidarObstacleCourseNoisy-v1"
 ACTOR_ITSELF = "_actor_itself"
 BEST = "_best"
 COMPARISONS: list[tuple[Side, Side]] = [
@@ -99,6 +100,9 @@ COMPARISONS: list[tuple[Side, Side]] = [
     ((SHIPPED, "td3"), AVERAGE_TD3_300K),
     ((SHIPPED, "adc"), (SHIPPED, "td3")),
     ((SHIPPED, "adc"), (SHIPPED, "sac")),
+    ((SHIPPED_NOISY, "adc"), (SHIPPED_NOISY, "ddpg")),
+    ((SHIPPED_NOISY, "adc"), (SHIPPED_NOISY, "td3")),
+    ((SHIPPED_NOISY, "adc"), (SHIPPED_NOISY, "sac")),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
