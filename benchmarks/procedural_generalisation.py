@@ -575,7 +575,7 @@ def stale_entries(metadata: dict[str, Any], algos: Collection[str] | None = None
     return stale
 
 
-def write_table(table: pd.DataFrame, path: Path) -> None:
+def write_csv(table: pd.DataFrame, path: Path) -> None:
     """
     Write a table atomically; a ``.gz`` one compressed without a timestamp, so that the same rows give the same
     bytes and rewriting an unchanged table leaves it unchanged.
@@ -718,7 +718,7 @@ class ScoredRuns:
                 table = self.table(name, algos)
                 if not table.empty:
                     folder.mkdir(parents=True, exist_ok=True)
-                    write_table(table, folder / name)
+                    write_csv(table, folder / name)
                 elif (folder / name).exists():
                     (folder / name).unlink()
         if (self.output / PENDING).exists() and not any((self.output / PENDING).iterdir()):
@@ -945,7 +945,7 @@ def main() -> None:
         if args.validation and evaluations:  # beside the training record: the runs' evaluations, whichever model is scored
             path = RESULTS_DIR / runs_name / VALIDATION_CSV
             new = validation_table(pd.concat(evaluations, ignore_index=True))
-            write_table(replace_runs(read_if_present(path), new, list(ledger.entries)), path)
+            write_csv(replace_runs(read_if_present(path), new, list(ledger.entries)), path)
         lines = write_statistics(ledger, args.env, args.robot, args.model, reps, None if args.quick else name)
         metadata = {
             "env": args.env,
