@@ -75,9 +75,11 @@ AVERAGE_ADC = "LidarObstacleCourse-v1_n_step_150k_sectors_average_validation"
 AVERAGE_TD3 = "LidarObstacleCourse-v1_n_step_td3_150k_sectors_average_validation"
 AVERAGE_ADC_300K = "LidarObstacleCourse-v1_n_step_300k_sectors_average_validation"
 AVERAGE_TD3_300K = "LidarObstacleCourse-v1_n_step_td3_300k_sectors_average_validation"
-#: The grids of the four shipped ``-v1`` entries: clean observations, and noisy observations (kinematic robot).
+#: The grids of the four shipped ``-v1`` entries: clean and noisy observations with the kinematic robot, and clean
+#: observations with the wheeled robot.
 SHIPPED = "LidarObstacleCourse-v1"
 SHIPPED_NOISY = "LidarObstacleCourseNoisy-v1"
+SHIPPED_WHEELED = "LidarObstacleCourse-v1_wheeled"
 ACTOR_ITSELF = "_actor_itself"
 BEST = "_best"
 COMPARISONS: list[tuple[Side, Side]] = [
@@ -103,6 +105,9 @@ COMPARISONS: list[tuple[Side, Side]] = [
     ((SHIPPED_NOISY, "adc"), (SHIPPED_NOISY, "ddpg")),
     ((SHIPPED_NOISY, "adc"), (SHIPPED_NOISY, "td3")),
     ((SHIPPED_NOISY, "adc"), (SHIPPED_NOISY, "sac")),
+    ((SHIPPED_WHEELED, "adc"), (SHIPPED_WHEELED, "ddpg")),
+    ((SHIPPED_WHEELED, "adc"), (SHIPPED_WHEELED, "td3")),
+    ((SHIPPED_WHEELED, "adc"), (SHIPPED_WHEELED, "sac")),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
