@@ -82,6 +82,13 @@ SHIPPED_NOISY = "LidarObstacleCourseNoisy-v1"
 SHIPPED_WHEELED = "LidarObstacleCourse-v1_wheeled"
 ACTOR_ITSELF = "_actor_itself"
 BEST = "_best"
+
+
+def adc_against_the_others(grid: str) -> list[tuple[Side, Side]]:
+    """ADC's runs of a shipped grid against those of each other algorithm of the grid, in ``ALGOS`` order."""
+    return [((grid, "adc"), (grid, algo)) for algo in ALGOS if algo != "adc"]
+
+
 COMPARISONS: list[tuple[Side, Side]] = [
     ("LidarObstacleCourse-v1_n_step_150k_sectors_validation", "LidarObstacleCourse-v1_n_step_150k_validation"),
     ("LidarObstacleCourse-v1_n_step_150k_sectors_validation_best", "LidarObstacleCourse-v1_n_step_150k_validation_best"),
@@ -102,12 +109,8 @@ COMPARISONS: list[tuple[Side, Side]] = [
     ((SHIPPED, "td3"), AVERAGE_TD3_300K),
     ((SHIPPED, "adc"), (SHIPPED, "td3")),
     ((SHIPPED, "adc"), (SHIPPED, "sac")),
-    ((SHIPPED_NOISY, "adc"), (SHIPPED_NOISY, "ddpg")),
-    ((SHIPPED_NOISY, "adc"), (SHIPPED_NOISY, "td3")),
-    ((SHIPPED_NOISY, "adc"), (SHIPPED_NOISY, "sac")),
-    ((SHIPPED_WHEELED, "adc"), (SHIPPED_WHEELED, "ddpg")),
-    ((SHIPPED_WHEELED, "adc"), (SHIPPED_WHEELED, "td3")),
-    ((SHIPPED_WHEELED, "adc"), (SHIPPED_WHEELED, "sac")),
+    *adc_against_the_others(SHIPPED_NOISY),
+    *adc_against_the_others(SHIPPED_WHEELED),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
