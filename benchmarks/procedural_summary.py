@@ -80,6 +80,7 @@ AVERAGE_TD3_300K = "LidarObstacleCourse-v1_n_step_td3_300k_sectors_average_valid
 SHIPPED = "LidarObstacleCourse-v1"
 SHIPPED_NOISY = "LidarObstacleCourseNoisy-v1"
 SHIPPED_WHEELED = "LidarObstacleCourse-v1_wheeled"
+SHIPPED_NOISY_WHEELED = "LidarObstacleCourseNoisy-v1_wheeled"
 ACTOR_ITSELF = "_actor_itself"
 BEST = "_best"
 
@@ -111,6 +112,7 @@ COMPARISONS: list[tuple[Side, Side]] = [
     ((SHIPPED, "adc"), (SHIPPED, "sac")),
     *adc_against_the_others(SHIPPED_NOISY),
     *adc_against_the_others(SHIPPED_WHEELED),
+    *adc_against_the_others(SHIPPED_NOISY_WHEELED),
 ]
 #: The test sets of the comparisons: the held-out layouts, the unseen course files pooled per run, the posts course.
 POSTS = "unseen_posts"
