@@ -1,12 +1,13 @@
 """
 Critic diagnostics of ADC's designs, DDPG and TD3 on the noisy Pendulum: what the critic study's numbers come from.
 
-Each configuration of :mod:`critic_study` trains on the benchmark engine with
-:class:`~sb3_adc.diagnostics.CriticDiagnosticsCallback` added through its hyperparameter entry (``callback:``). The
-diagnostics select nothing, so they run on the tuning seeds or on the study's fresh seeds alike. The callback logs
-the critic's bias against discounted Monte-Carlo returns of deterministic evaluation rollouts, the actor-gradient
-and ``dQ/da`` norms and, for ADC, the visits of each action interval and the roughness of the advantage across
-neighbouring intervals.
+Each configuration of the critic-design screen and of the fresh-seed comparison (their experiment files,
+``benchmarks/experiments/critic_design_screen.yml`` and ``noisy_pendulum_paper_critic.yml``) trains on the
+benchmark engine with :class:`~sb3_adc.diagnostics.CriticDiagnosticsCallback` added through its hyperparameter
+entry (``callback:``). The diagnostics select nothing, so they run on the tuning seeds or on the fresh seeds
+alike. The callback logs the critic's bias against discounted Monte-Carlo returns of deterministic evaluation
+rollouts, the actor-gradient and ``dQ/da`` norms and, for ADC, the visits of each action interval and the
+roughness of the advantage across neighbouring intervals.
 
 The runs go to ``benchmarks/runs/critic_diagnostics{_tag}/`` (not committed); a table of the last record of each
 run to ``benchmarks/results/critic_diagnostics{_tag}/``, the histories of the runs next to it, the IQM of the last
@@ -33,10 +34,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import torch as th
-from critic_study import CONFIGS, report
 
 from sb3_adc.diagnostics import ARRAY_KEYS, load_history, plot_diagnostics
-from sb3_adc.experiment.benchmark import BenchmarkSettings, run_benchmark, run_script
+from sb3_adc.experiment.benchmark import BenchmarkSettings, RunOutcome, run_benchmark, run_script
+from sb3_adc.experiment.experiments import read_experiment
 from sb3_adc.experiment.statistics import final_performance
 
 ROOT = Path(__file__).resolve().parent
@@ -47,6 +48,19 @@ ENV_ID = "sb3_adc/NoisyPendulum-v1"
 DEFAULT_CONFIGS = ["adc_paper", "adc_legendre", "ddpg", "td3"]
 #: The last records summarised with CIs over runs: the critic's bias, and the ADC-only advantage roughness.
 CI_KEYS = ["eval/critic_bias", "eval/critic_bias_abs", "train/advantage_roughness"]
+#: The configurations of the critic-design screen and of the fresh-seed comparison, by name.
+CONFIGS = {
+    name: config
+    for stem in ("critic_design_screen", "noisy_pendulum_paper_critic")
+    for name, config in read_experiment(str(ROOT / "experiments" / f"{stem}.yml")).configs.items()
+}
+
+
+def report(outcome: RunOutcome, done: int, total: int) -> None:
+    final = "" if outcome.final is None else f" final return {outcome.final['mean_return']:.1f}"
+    print(f"[{done}/{total}] {outcome.spec}: {outcome.status}{final}", flush=True)
+    if outcome.status == "failed":
+        print(outcome.error, flush=True)
 
 
 def summary_with_cis(table: pd.DataFrame, reps: int) -> pd.DataFrame:
@@ -82,14 +96,14 @@ def main() -> None:
     histories: dict[str, list[list[dict]]] = {}
     rows = []
     for name in args.configs:
-        algo, overrides, conf_folder = CONFIGS[name]
+        algo, overrides, conf_folder = CONFIGS[name].algo, CONFIGS[name].overrides, CONFIGS[name].hyperparams
         folder = RUNS_DIR.with_name(RUNS_DIR.name + suffix) / name
 
         def run_seed(
             seed: int,
             algo: str = algo,
             overrides: dict = overrides,
-            conf_folder: Path | None = conf_folder,
+            conf_folder: str | None = conf_folder,
             folder: Path = folder,
         ) -> Path:
             # One grid per seed, in its own folder: each run writes its diagnostics to its own history folder, and
@@ -111,7 +125,7 @@ def main() -> None:
                 log_folder=str(folder / f"seed{seed}"),
                 n_timesteps=n_timesteps,
                 overrides={**overrides, "callback": callback},
-                conf_folder=None if conf_folder is None else str(conf_folder),
+                conf_folder=conf_folder,
                 device="cpu",
             )
             result = run_benchmark(settings, workers=1, report=report)

@@ -1,5 +1,6 @@
 """
-The ``sb3-adc`` command (also ``python -m sb3_adc``): ``train``, ``enjoy``, ``benchmark`` and ``plot``.
+The ``sb3-adc`` command (also ``python -m sb3_adc``): ``train``, ``enjoy``, ``benchmark``, ``experiment`` and
+``plot``.
 
 Run ``sb3-adc SUB-COMMAND --help`` for the options of each. The command needs the ``experiment`` extra
 (``pip install "sb3-adc[experiment]"``); without it, or without an extra a run needs (``envs`` for the robot
@@ -24,15 +25,15 @@ def build_parser() -> argparse.ArgumentParser:
     :raises MissingExtraError: When the ``experiment`` extra is not installed
     """
     with requires_extra("experiment", "the sb3-adc command"):
-        from sb3_adc.cli import benchmark_command, enjoy_command, plot_command, train_command
+        from sb3_adc.cli import benchmark_command, enjoy_command, experiment_command, plot_command, train_command
 
     parser = argparse.ArgumentParser(
         prog="sb3-adc",
         description="Train, evaluate, benchmark and plot Actor-Dueling-Critic (ADC) and its baselines, RL-Zoo style.",
     )
     parser.add_argument("--version", action="version", version=f"sb3-adc {sb3_adc.__version__}")
-    subparsers = parser.add_subparsers(dest="command", metavar="{train,enjoy,benchmark,plot}", required=True)
-    for command in (train_command, enjoy_command, benchmark_command, plot_command):
+    subparsers = parser.add_subparsers(dest="command", metavar="{train,enjoy,benchmark,experiment,plot}", required=True)
+    for command in (train_command, enjoy_command, benchmark_command, experiment_command, plot_command):
         command.add_parser(subparsers)
     return parser
 

@@ -12,8 +12,6 @@ from sb3_adc.experiment.benchmark import INTERRUPTED, run_script
 SCRIPTS = [
     ("budget_sweep", "run_benchmarks", ["--algo", "td3", "--seeds", "0"]),
     ("critic_diagnostics", "run_benchmark", ["--quick"]),
-    ("critic_study", "run_benchmark", ["--quick"]),
-    ("paper_pendulum", "run_benchmark", ["--quick"]),
     ("procedural_generalisation", "run_benchmark", ["--quick"]),
 ]
 

@@ -1,0 +1,105 @@
+"""``sb3-adc experiment``: run an experiment file (configurations x environments x seeds), resumable."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from tqdm import tqdm
+
+from sb3_adc.cli.common import CommandError, apply_runtime_arguments
+from sb3_adc.config import check_env_id
+from sb3_adc.experiment.benchmark import INTERRUPTED, RunOutcome
+from sb3_adc.experiment.experiments import read_experiment, run_experiment
+from sb3_adc.experiment.summary import write_report
+
+DESCRIPTION = """\
+Run the experiment a YAML file describes (its format: sb3_adc.experiment.experiments, and the files
+of benchmarks/experiments/): every configuration x environment x seed, one run per process (local
+backend) or per Ray task, resumable like `sb3-adc benchmark`; then write to its results folder the
+merged tables (final.csv, evaluations.csv, episodes.csv), the summary (summary.csv, summary.md,
+summary_table.csv: IQM [95% CI], across-seed std, AUC, P(reference > configuration)) and the
+figures. A bad file stops the command with exit status 2 before anything is trained.
+
+examples:
+  sb3-adc experiment benchmarks/experiments/noisy_pendulum_shipped.yml --workers 2
+  sb3-adc experiment benchmarks/experiments/noisy_pendulum_shipped.yml --report   # redraw, no training
+  sb3-adc experiment benchmarks/experiments/noisy_pendulum_shipped.yml --tiny     # does the file run?
+"""
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """
+    Register the sub-command.
+
+    :param subparsers: The ``sb3-adc`` sub-parsers
+    """
+    parser = subparsers.add_parser(
+        "experiment",
+        help="run an experiment file (configurations x environments x seeds), write its tables and figures",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("file", help="the experiment file (YAML)")
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--report", action="store_true", help="only rewrite the summary and figures from its tables")
+    mode.add_argument(
+        "--tiny", action="store_true", help="a check: one seed, one environment, a few hundred steps, in a temporary folder"
+    )
+    parser.add_argument("--backend", choices=["local", "ray"], default="local", help="local process pool or Ray tasks")
+    parser.add_argument("--workers", type=int, default=None, help="local backend: parallel processes (default: CPU count)")
+    parser.add_argument("--address", default=None, help="Ray backend: cluster address (default: start a local Ray)")
+    parser.set_defaults(handler=run, device="cpu", num_threads=1, gym_packages=[])
+
+
+def run(args: argparse.Namespace) -> int:
+    """
+    Run the sub-command.
+
+    :param args: The parsed command line
+    :return: The exit status (1 if some runs failed)
+    """
+    apply_runtime_arguments(args)
+    if args.workers is not None and not 1 <= args.workers <= (os.cpu_count() or 1) * 4:
+        raise CommandError(f"--workers must be between 1 and {(os.cpu_count() or 1) * 4}, got {args.workers}")
+    experiment = read_experiment(args.file)
+    for env_id in experiment.envs:
+        check_env_id(env_id)
+    if args.report:
+        write_report(experiment, experiment.results)
+        print(f"Wrote the summary and figures of {experiment.name} in {experiment.results}")
+        return 0
+    experiment.resolved()  # every configuration's entries, checked before anything runs
+    n_runs = len(experiment.configs) * (1 if args.tiny else len(experiment.envs) * len(experiment.seeds))
+    print(f"Experiment {experiment.name}: {experiment.description}")
+    print(f"{len(experiment.configs)} configurations, {n_runs} runs ({args.backend} backend)")
+    progress = tqdm(total=n_runs, unit="run")
+
+    def report(outcome: RunOutcome, done: int, total: int) -> None:
+        name = os.path.basename(os.path.normpath(outcome.log_folder))
+        result = "" if outcome.final is None else f": final return {outcome.final['mean_return']:.2f}"
+        progress.write(f"[{done}/{total}] {name}: {outcome.spec} {outcome.status}{result}")
+        if outcome.status == "failed":
+            progress.write(outcome.error)
+        progress.update(1)
+
+    try:
+        outcomes = run_experiment(experiment, args.workers, args.backend, args.address, report, tiny=args.tiny)
+    except KeyboardInterrupt:
+        progress.close()
+        print(f"\n{INTERRUPTED}", file=sys.stderr)
+        return 130
+    finally:
+        progress.close()
+    failures = [outcome for outcome in outcomes if outcome.status == "failed"]
+    if failures:
+        print(f"{len(failures)} of {n_runs} runs failed; re-run the same command to retry them.")
+        return 1
+    if args.tiny:
+        print(f"{experiment.name} runs: {n_runs} tiny runs and its report passed (nothing kept)")
+    else:
+        print(f"Wrote the tables and figures of {experiment.name} in {experiment.results}")
+        with open(os.path.join(experiment.results, "summary.md"), encoding="utf-8") as stream:
+            print(stream.read())
+    return 0

@@ -1,0 +1,345 @@
+"""
+Experiments as data: one YAML file names a grid of configurations x environments x seeds, its budget, its
+evaluation and its statistics; ``sb3-adc experiment FILE`` trains it on the benchmark engine
+(:func:`~sb3_adc.experiment.benchmark.run_benchmarks`: resumable, one process per run or Ray tasks) and writes its
+tables and figures. Every committed result under ``benchmarks/results/`` that a Pendulum or paper-course page
+cites is one file of ``benchmarks/experiments/``.
+
+The file (read with the hyperparameter files' bounded YAML reader: nothing in it is executed)::
+
+    description: The shipped entries on the noisy Pendulum, fresh seeds
+    envs: [sb3_adc/NoisyPendulum-v1]
+    seeds: {start: 1000, stop: 1010}        # or a list
+    n_timesteps: 20000                      # null: each entry's own budget
+    evaluation: {episodes: 5, final_episodes: 20}
+    configs:                                # name -> algorithm, hyperparameter folder, overrides, figure label
+      adc_shipped: {algo: adc}
+      td3_tuned: {algo: td3, hyperparams: ../results/fair_tuning/hyperparams, label: TD3 (shipped)}
+    reference: adc_shipped                  # P(reference > each other configuration)
+    threshold: -300                         # optional: runs that stay above this return, and how soon
+    runs: ../runs/noisy_pendulum_equal_tuning   # optional (default ../runs/<name>): shared runs train once
+    results: ../results/noisy_pendulum_shipped  # optional (default ../results/<name>)
+    figures: ../../docs/_static/benchmarks      # optional: where the figures go, as <name>_<figure>.png
+
+Paths are relative to the file's folder. ``hyperparams`` is a folder of ``{algo}.yml`` files (default: the shipped
+ones); ``overrides`` are ``-params``. Each configuration is a benchmark grid in ``{runs}/{config}/``; the tables
+of all of them are merged with the configuration's name in the ``algo`` column.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import os
+import tempfile
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from sb3_adc.config import ALGORITHMS, HyperparamsError, load_hyperparams
+from sb3_adc.config.loader import read_yaml_file
+from sb3_adc.experiment.benchmark import (
+    BenchmarkSettings,
+    RunOutcome,
+    run_benchmarks,
+)
+
+#: Keys of an experiment file and of one of its configurations.
+KEYS = (
+    "description",
+    "envs",
+    "seeds",
+    "n_timesteps",
+    "evaluation",
+    "configs",
+    "reference",
+    "threshold",
+    "bootstrap_reps",
+    "runs",
+    "results",
+    "figures",
+)
+CONFIG_KEYS = ("algo", "hyperparams", "overrides", "label")
+EVALUATION_KEYS = ("episodes", "final_episodes")
+#: Bounds on a file's grid, so that a typo cannot ask for a million runs.
+MAX_CONFIGS, MAX_ENVS, MAX_SEEDS = 64, 16, 1000
+#: Budget and grid of ``--tiny``: the file's whole pipeline on one seed and one environment, in seconds.
+TINY_TIMESTEPS = 200
+
+
+class ExperimentError(HyperparamsError):
+    """An experiment file that cannot be run: the message names the file and the key (exit status 2 at the CLI)."""
+
+
+@dataclass(frozen=True)
+class Config:
+    """
+    One configuration of an experiment.
+
+    :param algo: The algorithm
+    :param hyperparams: Folder of ``{algo}.yml`` files (``None``: the shipped files)
+    :param overrides: ``key: value`` overrides of its entries (``-params``)
+    :param label: Its name in figures
+    """
+
+    algo: str
+    hyperparams: str | None = None
+    overrides: dict[str, Any] = field(default_factory=dict)
+    label: str | None = None
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """
+    An experiment file, read and checked (:func:`read_experiment`). Paths are absolute.
+
+    :param name: The file's stem
+    :param path: The file
+    :param description: What it answers
+    :param envs: Environment ids
+    :param seeds: Seeds
+    :param configs: Configuration name -> :class:`Config`
+    :param n_timesteps: Budget of every run (``None``: each entry's)
+    :param eval_episodes: Episodes of each periodic evaluation
+    :param final_eval_episodes: Episodes of the final evaluation
+    :param reference: The configuration whose probability of improvement on the others is reported
+    :param threshold: A return that runs should reach and keep (optional)
+    :param bootstrap_reps: Bootstrap replications of the CIs
+    :param runs: Folder of the runs (one grid per configuration)
+    :param results: Folder of the tables
+    :param figures: Folder of the figures (``None``: with the tables)
+    """
+
+    name: str
+    path: str
+    description: str
+    envs: list[str]
+    seeds: list[int]
+    configs: dict[str, Config]
+    n_timesteps: int | None = None
+    eval_episodes: int = 5
+    final_eval_episodes: int = 20
+    reference: str | None = None
+    threshold: float | None = None
+    bootstrap_reps: int = 5000
+    runs: str = ""
+    results: str = ""
+    figures: str | None = None
+
+    def grids(self, tiny: bool = False, runs: str | None = None) -> dict[str, BenchmarkSettings]:
+        """
+        One benchmark grid per configuration.
+
+        :param tiny: The first environment and seed only, :data:`TINY_TIMESTEPS` steps, one evaluation episode
+        :param runs: Folder of the runs instead of :attr:`runs`
+        """
+        return {
+            name: BenchmarkSettings(
+                algos=[config.algo],
+                env_ids=self.envs[:1] if tiny else list(self.envs),
+                seeds=self.seeds[:1] if tiny else list(self.seeds),
+                log_folder=os.path.join(runs or self.runs, name),
+                n_timesteps=TINY_TIMESTEPS if tiny else self.n_timesteps,
+                overrides=dict(config.overrides),
+                conf_folder=config.hyperparams,
+                eval_episodes=1 if tiny else self.eval_episodes,
+                final_eval_episodes=1 if tiny else self.final_eval_episodes,
+                device="cpu",
+            )
+            for name, config in self.configs.items()
+        }
+
+    def resolved(self) -> dict[str, dict[str, dict[str, Any]]]:
+        """
+        Each configuration's hyperparameters on each environment, as its runs save them (``config.yml``).
+
+        :raises HyperparamsError: for a configuration whose entry is missing or invalid
+        """
+        resolved: dict[str, dict[str, dict[str, Any]]] = {}
+        for name, config in self.configs.items():
+            conf_file = None if config.hyperparams is None else os.path.join(config.hyperparams, f"{config.algo}.yml")
+            resolved[name] = {
+                env: load_hyperparams(config.algo, env, conf_file, dict(config.overrides), self.n_timesteps).saved
+                for env in self.envs
+            }
+        return resolved
+
+    def record(self, root: str) -> dict[str, Any]:
+        """
+        The settings the results were made with, as ``metadata.json`` records them (paths relative to ``root``), with
+        every configuration's resolved entries (:meth:`resolved`): a shipped entry or a file that changes afterwards
+        no longer gives the recorded runs, and the experiment's test says so.
+
+        :param root: The repository root
+        """
+        return {
+            "experiment": os.path.relpath(self.path, root),
+            "configs": {
+                name: {
+                    "algo": config.algo,
+                    "overrides": dict(config.overrides),
+                    "hyperparams": "shipped" if config.hyperparams is None else os.path.relpath(config.hyperparams, root),
+                }
+                for name, config in self.configs.items()
+            },
+            "reference": self.reference,
+            "envs": list(self.envs),
+            "seeds": list(self.seeds),
+            "n_timesteps": self.n_timesteps,
+            "eval": f"{self.eval_episodes} deterministic episodes per evaluation, 20 per run; "
+            f"final: {self.final_eval_episodes} deterministic episodes",
+            "resolved": self.resolved(),
+        }
+
+
+def _require(condition: bool, path: str, key: str, problem: str) -> None:
+    if not condition:
+        raise ExperimentError(path, key, problem)
+
+
+def _check_keys(data: Any, accepted: tuple[str, ...], path: str, where: str) -> None:
+    _require(isinstance(data, Mapping), path, where, f"must be a mapping of {', '.join(accepted)}")
+    unknown = sorted(set(data) - set(accepted))
+    _require(not unknown, path, where, f"has unknown keys {unknown}; accepted: {', '.join(accepted)}")
+
+
+def _int(value: Any, low: int, high: int) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and low <= value <= high
+
+
+def _seeds(value: Any, path: str) -> list[int]:
+    problem = f"must list 1 to {MAX_SEEDS} distinct seeds >= 0, or be {{start: int, stop: int}}"
+    if isinstance(value, Mapping):
+        _check_keys(value, ("start", "stop"), path, "seeds")
+        start, stop = value.get("start", 0), value.get("stop", 0)
+        _require(_int(start, 0, 2**31) and _int(stop, start + 1, start + MAX_SEEDS), path, "seeds", problem)
+        value = list(range(start, stop))
+    _require(isinstance(value, list) and all(_int(seed, 0, 2**31) for seed in value), path, "seeds", problem)
+    _require(0 < len(value) <= MAX_SEEDS and len(set(value)) == len(value), path, "seeds", problem)
+    return list(value)
+
+
+def _folder(value: Any, path: str, key: str) -> str | None:
+    if value is None:
+        return None
+    _require(isinstance(value, str) and value != "", path, key, "must be a folder path (relative to the file's folder)")
+    return os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(path)), value))
+
+
+def _config(name: Any, value: Any, path: str) -> Config:
+    key = f"configs.{name}"
+    _require(isinstance(name, str) and name.isidentifier(), path, key, "must be named with letters, digits and _")
+    _check_keys(value, CONFIG_KEYS, path, key)
+    algo, overrides, label = value.get("algo"), value.get("overrides") or {}, value.get("label")
+    _require(algo in ALGORITHMS.names(), path, f"{key}.algo", f"must be one of {', '.join(ALGORITHMS.names())}")
+    _require(isinstance(overrides, Mapping), path, f"{key}.overrides", "must be a mapping of hyperparameters")
+    _require(label is None or isinstance(label, str), path, f"{key}.label", "must be a string")
+    hyperparams = _folder(value.get("hyperparams"), path, f"{key}.hyperparams")
+    if hyperparams is not None:
+        conf_file = os.path.join(hyperparams, f"{algo}.yml")
+        _require(os.path.isfile(conf_file), path, f"{key}.hyperparams", f"has no {algo}.yml ({conf_file})")
+    return Config(str(algo), hyperparams, dict(overrides), label)
+
+
+def read_experiment(path: str) -> Experiment:
+    """
+    Read and check an experiment file.
+
+    :param path: The file
+    :raises ExperimentError: naming the key of anything the file gets wrong
+    :raises HyperparamsError: if the file is not bounded UTF-8 YAML
+    """
+    if not os.path.isfile(path):
+        raise ExperimentError(path, None, "no such experiment file")
+    data = read_yaml_file(path)
+    _check_keys(data, KEYS, path, "the file")
+    name = os.path.splitext(os.path.basename(path))[0]
+    envs, configs, n_timesteps = data.get("envs"), data.get("configs"), data.get("n_timesteps")
+    envs_ok = isinstance(envs, list) and 0 < len(envs) <= MAX_ENVS and all(isinstance(env, str) for env in envs)
+    _require(envs_ok, path, "envs", f"must list 1 to {MAX_ENVS} env ids")
+    problem = f"must map 1 to {MAX_CONFIGS} names to configurations"
+    _require(isinstance(configs, Mapping) and 0 < len(configs) <= MAX_CONFIGS, path, "configs", problem)
+    _require(n_timesteps is None or _int(n_timesteps, 1, 10**9), path, "n_timesteps", "must be in 1-1e9 or null")
+    evaluation = data.get("evaluation") or {}
+    _check_keys(evaluation, EVALUATION_KEYS, path, "evaluation")
+    episodes, final_episodes = evaluation.get("episodes", 5), evaluation.get("final_episodes", 20)
+    for key, value in (("episodes", episodes), ("final_episodes", final_episodes)):
+        _require(_int(value, 1, 1000), path, f"evaluation.{key}", "must be an integer in 1-1000")
+    reference, threshold = data.get("reference"), data.get("threshold")
+    _require(reference is None or reference in configs, path, "reference", f"must be one of the configs {list(configs)}")
+    _require(threshold is None or isinstance(threshold, int | float), path, "threshold", "must be a number")
+    reps, description = data.get("bootstrap_reps", 5000), data.get("description", "")
+    _require(_int(reps, 100, 100_000), path, "bootstrap_reps", "must be an integer in 100-100000")
+    _require(isinstance(description, str), path, "description", "must be a string")
+    return Experiment(
+        name=name,
+        path=os.path.abspath(path),
+        description=description,
+        envs=list(envs),
+        seeds=_seeds(data.get("seeds"), path),
+        configs={str(key): _config(key, value, path) for key, value in configs.items()},
+        n_timesteps=n_timesteps,
+        eval_episodes=episodes,
+        final_eval_episodes=final_episodes,
+        reference=reference,
+        threshold=None if threshold is None else float(threshold),
+        bootstrap_reps=reps,
+        runs=str(_folder(data.get("runs", f"../runs/{name}"), path, "runs")),
+        results=str(_folder(data.get("results", f"../results/{name}"), path, "results")),
+        figures=_folder(data.get("figures"), path, "figures"),
+    )
+
+
+def run_experiment(
+    experiment: Experiment,
+    workers: int | None = None,
+    backend: str = "local",
+    address: str | None = None,
+    report: Callable[[RunOutcome, int, int], None] | None = None,
+    tiny: bool = False,
+) -> list[RunOutcome]:
+    """
+    Train (or resume, or skip when finished) every run of the experiment in one pool of workers, then write its
+    tables and figures (:func:`write_report`).
+
+    :param experiment: The experiment
+    :param workers: Processes of the local backend (``None``: the number of CPUs)
+    :param backend: ``local`` or ``ray``
+    :param address: Ray cluster address
+    :param report: Called with (outcome, runs done, runs in total) as each run finishes
+    :param tiny: The file's whole pipeline on one seed, one environment and :data:`TINY_TIMESTEPS` steps (100
+        bootstrap replications), in a temporary folder: a check that the file runs, not a result
+    :return: The runs' outcomes (failed runs included: the tables hold the others)
+    """
+    if tiny:
+        experiment = dataclasses.replace(experiment, bootstrap_reps=100)
+    scratch_folder = tempfile.TemporaryDirectory(prefix=f"{experiment.name}_tiny_") if tiny else contextlib.nullcontext("")
+    with scratch_folder as scratch:
+        runs = os.path.join(scratch, "runs") if scratch else None
+        grids = experiment.grids(tiny=tiny, runs=runs)
+        start = time.perf_counter()
+        results = run_benchmarks(list(grids.values()), backend, workers, address, report)
+        elapsed = time.perf_counter() - start
+        outcomes = [outcome for result in results for outcome in result.outcomes]
+        from sb3_adc.experiment.summary import merge_tables, write_report
+
+        tables = {name: result.tables for name, result in zip(grids, results, strict=True)}
+        output = os.path.join(scratch, "results") if scratch else experiment.results
+        if any(outcome.final is not None for outcome in outcomes):
+            merge_tables(tables, output)
+            write_report(experiment, output, figures=None if tiny else experiment.figures, wall_time_s=elapsed)
+    return outcomes
+
+
+def repository_root(experiment: Experiment) -> str:
+    """
+    The folder that recorded paths are relative to: the repository holding the file's ``experiments/`` folder
+    (``benchmarks/experiments/x.yml`` -> the repository), else the file's folder.
+
+    :param experiment: The experiment
+    """
+    folder = os.path.dirname(experiment.path)
+    if os.path.basename(folder) == "experiments" and os.path.basename(os.path.dirname(folder)) == "benchmarks":
+        return os.path.dirname(os.path.dirname(folder))
+    return folder

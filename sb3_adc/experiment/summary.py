@@ -1,0 +1,270 @@
+"""
+The report of an experiment (:mod:`sb3_adc.experiment.experiments`): its merged tables, and its summary, one row
+per environment and configuration:
+the final-return IQM and mean with 95% stratified-bootstrap CIs (rliable), the across-seed standard deviation,
+the area under the evaluation curve with its IQM and CI, the probability that the experiment's reference
+configuration improves on each other one (with CI), and the median wall-clock time of a run. Also, for a return
+threshold, the runs that reach it and how soon they stay there (:func:`~sb3_adc.experiment.statistics.time_to_threshold`).
+
+Needs the ``experiment`` extra (rliable, pandas).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CSV
+from sb3_adc.experiment.plots import plot_results
+from sb3_adc.experiment.provenance import machine_metadata
+from sb3_adc.experiment.results import read_table
+from sb3_adc.experiment.statistics import CONFIDENCE, _seeded_bootstrap, time_to_threshold
+from sb3_adc.extras import requires_extra
+
+if TYPE_CHECKING:
+    from sb3_adc.experiment.experiments import Experiment
+
+with requires_extra("experiment", "the experiment summaries"):
+    import pandas as pd
+    from rliable import library as rly
+    from rliable import metrics
+
+#: Columns of the formatted summary (``summary.md`` and ``summary_table.csv``) but the last, which names the
+#: reference: see :func:`display_columns`.
+_DISPLAY_COLUMNS = ["env", "configuration", "runs", "final IQM [95% CI]", "final mean", "across-seed std", "AUC IQM [95% CI]"]
+
+
+def _interval(data: dict[str, Any], func: Callable[..., Any], reps: int, seed: int) -> tuple[dict[str, Any], dict[str, Any]]:
+    with _seeded_bootstrap(seed):
+        return rly.get_interval_estimates(
+            data, func, reps=reps, confidence_interval_size=CONFIDENCE, random_state=np.random.RandomState(seed)
+        )
+
+
+def _area(curve: pd.DataFrame) -> float:
+    """The mean evaluation return over a run: the area under its curve (trapezoidal in timesteps) over its span."""
+    x, y = curve["timesteps"].to_numpy(np.float64), curve["mean_return"].to_numpy(np.float64)
+    return float(np.trapezoid(y, x) / (x[-1] - x[0])) if len(x) > 1 else np.nan
+
+
+def summary(
+    final: pd.DataFrame, evaluations: pd.DataFrame, reps: int, reference: str | None, episodes: pd.DataFrame | None = None
+) -> pd.DataFrame:
+    """
+    Per environment and configuration (the ``algo`` column of the tables): final-return IQM and mean with CIs,
+    across-seed std, area under the evaluation curve with its IQM and CI, the probability that ``reference``
+    improves on the configuration (final return, with CI: ``p_improvement_of_adc`` and its bounds, the name the
+    committed tables use), and, when the episodes carry their wall-clock time, the median seconds a run trained.
+
+    :param final: The final evaluations (``final.csv``)
+    :param evaluations: The evaluation curves (``evaluations.csv``)
+    :param reps: Bootstrap replications
+    :param reference: The configuration whose improvement on the others is measured (``None``: none)
+    :param episodes: The training episodes (``episodes.csv``), for the run times
+    """
+    rows = []
+    for env, env_final in final.groupby("env", sort=True):
+        scores: dict[str, np.ndarray] = {}
+        areas: dict[str, np.ndarray] = {}
+        for name, group in env_final.groupby("algo", sort=False):
+            ordered = group.sort_values("seed")
+            scores[str(name)] = ordered["mean_return"].to_numpy(np.float64).reshape(-1, 1)
+            curves = evaluations[(evaluations["env"] == env) & (evaluations["algo"] == name)]
+            per_run = [_area(curves[curves["seed"] == seed].sort_values("timesteps")) for seed in ordered["seed"]]
+            areas[str(name)] = np.asarray(per_run).reshape(-1, 1)
+        iqm_mean = lambda x: np.array([metrics.aggregate_iqm(x), metrics.aggregate_mean(x)])  # noqa: E731
+        final_points, final_intervals = _interval(scores, iqm_mean, reps, 0)
+        area_points, area_intervals = _interval(areas, iqm_mean, reps, 1)
+        improvement: tuple[dict[str, Any], dict[str, Any]] = ({}, {})
+        if reference is not None and reference in scores:
+            pairs = {
+                name: (scores[reference], other)
+                for name, other in scores.items()
+                if name != reference and other.shape == scores[reference].shape
+            }
+            if pairs:
+                improvement = _interval(pairs, metrics.probability_of_improvement, reps, 2)
+        for name in scores:
+            row: dict[str, Any] = {
+                "env": env,
+                "config": name,
+                "n_runs": scores[name].shape[0],
+                "final_iqm": final_points[name][0],
+                "final_iqm_ci_low": final_intervals[name][0, 0],
+                "final_iqm_ci_high": final_intervals[name][1, 0],
+                "final_mean": final_points[name][1],
+                "final_std": float(scores[name].std(ddof=1)) if scores[name].shape[0] > 1 else np.nan,
+                "auc_iqm": area_points[name][0],
+                "auc_iqm_ci_low": area_intervals[name][0, 0],
+                "auc_iqm_ci_high": area_intervals[name][1, 0],
+                "auc_mean": area_points[name][1],
+            }
+            if episodes is not None and "wall_time_s" in episodes.columns:
+                runs = episodes[(episodes["env"] == env) & (episodes["algo"] == name)]
+                row["run_time_s_median"] = float(runs.groupby("seed")["wall_time_s"].max().median())
+            if name in improvement[0]:
+                row["p_improvement_of_adc"] = float(np.asarray(improvement[0][name]).reshape(-1)[0])
+                low, high = np.asarray(improvement[1][name]).reshape(2, -1)[:, 0]
+                row["p_improvement_ci_low"], row["p_improvement_ci_high"] = float(low), float(high)
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def display_columns(reference: str | None) -> list[str]:
+    """
+    Columns of the formatted summary (``summary.md`` and ``summary_table.csv``, which the docs include).
+
+    :param reference: The reference configuration
+    """
+    return [*_DISPLAY_COLUMNS, f"P({reference} > configuration) [95% CI]"]
+
+
+def display_table(table: pd.DataFrame, reference: str | None) -> pd.DataFrame:
+    """
+    The summary with rounded numbers and CIs in brackets, one string per cell.
+
+    :param table: The output of :func:`summary`
+    :param reference: The reference configuration
+    """
+    rows = []
+    for row in table.itertuples():
+        improvement = "—"
+        if not pd.isna(getattr(row, "p_improvement_of_adc", np.nan)):
+            improvement = f"{row.p_improvement_of_adc:.2f} [{row.p_improvement_ci_low:.2f}, {row.p_improvement_ci_high:.2f}]"
+        rows.append(
+            [
+                row.env,
+                row.config,
+                str(row.n_runs),
+                f"{row.final_iqm:.1f} [{row.final_iqm_ci_low:.1f}, {row.final_iqm_ci_high:.1f}]",
+                f"{row.final_mean:.1f}",
+                f"{row.final_std:.1f}",
+                f"{row.auc_iqm:.1f} [{row.auc_iqm_ci_low:.1f}, {row.auc_iqm_ci_high:.1f}]",
+                improvement,
+            ]
+        )
+    return pd.DataFrame(rows, columns=display_columns(reference))
+
+
+def markdown(table: pd.DataFrame, reference: str | None) -> str:
+    """
+    :func:`display_table` as a Markdown table.
+
+    :param table: The output of :func:`summary`
+    :param reference: The reference configuration
+    """
+    display = display_table(table, reference)
+    lines = ["| " + " | ".join(display_columns(reference)) + " |", "|---|---|---:|---|---:|---:|---|---|"]
+    lines += ["| " + " | ".join(row) + " |" for row in display.itertuples(index=False)]
+    return "\n".join(lines) + "\n"
+
+
+def threshold_markdown(converged: pd.DataFrame, threshold: float) -> str:
+    """
+    Per configuration: runs that stay above ``threshold`` by the end, and the median episodes until they do (a run
+    that never does counts as beyond its budget, so the median is a lower bound when it is one of them).
+
+    :param converged: The output of :func:`~sb3_adc.experiment.statistics.time_to_threshold`
+    :param threshold: The return
+    """
+    lines = [
+        f"| env | configuration | runs at or above {threshold:g} by the end | median episodes until they stay there |",
+        "|---|---|---:|---:|",
+    ]
+    for (env, name), group in converged.groupby(["env", "algo"], sort=False):
+        n_episodes = group["episodes"].fillna(np.inf).to_numpy(np.float64)
+        median = float(np.median(n_episodes))
+        budget = int(group["budget_episodes"].max())
+        shown = f"> {budget}" if np.isinf(median) else f"{median:.0f}"
+        lines.append(f"| {env} | {name} | {int(group['reached'].sum())} of {len(group)} | {shown} |")
+    return "\n".join(lines) + "\n"
+
+
+def merge_tables(tables: Mapping[str, Mapping[str, str]], output: str) -> None:
+    """
+    Merge the tables of an experiment's grids into ``output``: one table of every configuration, with the
+    configuration's name in the ``algo`` column.
+
+    :param tables: Configuration name -> its grid's table name -> path
+    :param output: The experiment's results folder
+    """
+    os.makedirs(output, exist_ok=True)
+    for table in (FINAL_CSV, EVALUATIONS_CSV, EPISODES_CSV):
+        frames = []
+        for name, paths in tables.items():
+            frame = read_table(paths[table])
+            frame["algo"] = name
+            frames.append(frame)
+        pd.concat(frames, ignore_index=True).to_csv(os.path.join(output, table), index=False)
+
+
+def write_report(experiment: Experiment, output: str, figures: str | None = None, wall_time_s: float | None = None) -> None:
+    """
+    Write an experiment's statistics and figures from its merged tables in ``output`` (``final.csv``,
+    ``evaluations.csv``, ``episodes.csv``): ``summary.csv``, ``summary.md`` and ``summary_table.csv``
+    (:mod:`~sb3_adc.experiment.summary`), ``time_to_threshold.{csv,md}`` with a threshold, the figures and
+    tables of :func:`~sb3_adc.experiment.plots.plot_results` (labelled with the configurations' labels), and
+    ``metadata.json`` (the settings, the versions and the machine). No training: ``sb3-adc experiment FILE
+    --report`` redraws the committed results this way (and leaves ``metadata.json``, which describes the training,
+    as it is).
+
+    :param experiment: The experiment
+    :param output: Its results folder
+    :param figures: Where to move the figures, as ``{name}_{figure}.png`` (``None``: they stay in ``output``)
+    :param wall_time_s: Seconds this invocation trained, added to the recorded ones (``None``: no training,
+        ``metadata.json`` is left as it is)
+    """
+    final, evaluations = read_table(os.path.join(output, FINAL_CSV)), read_table(os.path.join(output, EVALUATIONS_CSV))
+    episodes = read_table(os.path.join(output, EPISODES_CSV))
+    reps = experiment.bootstrap_reps
+    table = summary(final, evaluations, reps, experiment.reference, episodes)
+    table.to_csv(os.path.join(output, "summary.csv"), index=False)
+    with open(os.path.join(output, "summary.md"), "w", encoding="utf-8") as stream:
+        stream.write(markdown(table, experiment.reference))
+    display_table(table, experiment.reference).to_csv(os.path.join(output, "summary_table.csv"), index=False)
+    if experiment.threshold is not None:
+        converged = time_to_threshold(evaluations, episodes, experiment.threshold)
+        converged.to_csv(os.path.join(output, "time_to_threshold.csv"), index=False)
+        with open(os.path.join(output, "time_to_threshold.md"), "w", encoding="utf-8") as stream:
+            stream.write(threshold_markdown(converged, experiment.threshold))
+    labels = {name: config.label for name, config in experiment.configs.items() if config.label}
+    # The figures name the configurations by their labels; the tables keep the configurations' names.
+    relabel = {"algo": labels}
+    plots = plot_results(
+        evaluations.replace(relabel), output, final=final.replace(relabel), episodes=episodes.replace(relabel), reps=reps
+    )
+    inverse = {label: name for name, label in labels.items()}
+    for path in plots.tables:
+        if inverse and path.endswith(".csv"):
+            read_table(path).replace({"algo": inverse}).to_csv(path, index=False)
+    if figures is not None:
+        os.makedirs(figures, exist_ok=True)
+        for figure in plots.figures:
+            os.replace(figure, os.path.join(figures, f"{experiment.name}_{os.path.basename(figure)}"))
+    if wall_time_s is not None:
+        _write_metadata(experiment, output, wall_time_s)
+
+
+def _write_metadata(experiment: Experiment, output: str, wall_time_s: float) -> None:
+    from sb3_adc.experiment.experiments import repository_root
+
+    path = os.path.join(output, "metadata.json")
+    previous: dict[str, Any] = {}
+    if os.path.isfile(path):
+        with open(path, encoding="utf-8") as stream:
+            previous = json.load(stream)
+    wall_times = dict(previous.get("wall_time_s_per_invocation", {}))
+    wall_times[str(len(wall_times))] = round(wall_time_s, 1)
+    metadata = {
+        **experiment.record(repository_root(experiment)),
+        "wall_time_s_per_invocation": wall_times,
+        "bootstrap_reps": experiment.bootstrap_reps,
+        **{key: previous[key] for key in ("notes",) if key in previous},
+        **machine_metadata(),
+    }
+    with open(path, "w", encoding="utf-8") as stream:
+        stream.write(json.dumps(metadata, indent=2) + "\n")

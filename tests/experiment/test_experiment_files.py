@@ -1,0 +1,165 @@
+"""
+Experiments as data: every file of ``benchmarks/experiments/`` reads, resolves to the settings recorded with its
+committed results, regenerates its committed summary from its committed tables, and runs end to end on a tiny
+budget; bad files are refused with the key named (exit status 2 at the CLI) before anything is written.
+"""
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sb3_adc.cli import main
+from sb3_adc.experiment.experiments import ExperimentError, read_experiment, repository_root, run_experiment
+from sb3_adc.experiment.summary import summary
+
+ROOT = Path(__file__).resolve().parents[2]
+FILES = sorted((ROOT / "benchmarks" / "experiments").glob("*.yml"))
+IDS = [path.stem for path in FILES]
+RECORDED = ("configs", "reference", "envs", "seeds", "n_timesteps", "resolved")
+
+
+def test_there_are_experiment_files():
+    assert len(FILES) >= 10
+
+
+@pytest.mark.parametrize("path", FILES, ids=IDS)
+def test_file_resolves_to_the_settings_recorded_with_its_results(path):
+    """Re-running the file trains what its committed results were trained with (entries, overrides, grid)."""
+    experiment = read_experiment(str(path))
+    metadata = json.loads((Path(experiment.results) / "metadata.json").read_text())
+    record = json.loads(json.dumps(experiment.record(repository_root(experiment))))
+    assert {key: record[key] for key in RECORDED} == {key: metadata[key] for key in RECORDED}
+    assert metadata["experiment"] == f"benchmarks/experiments/{path.name}"
+
+
+@pytest.mark.parametrize("path", FILES, ids=IDS)
+def test_summary_regenerates_from_the_committed_tables(path):
+    """The committed ``summary.csv`` is what the engine computes from the committed run tables."""
+    experiment = read_experiment(str(path))
+    results = Path(experiment.results)
+    committed = results / "summary.csv"
+    if not committed.is_file():
+        pytest.skip("no summary committed with these results")
+    tables = {name: pd.read_csv(results / f"{name}.csv") for name in ("final", "evaluations", "episodes")}
+    regenerated = summary(
+        tables["final"], tables["evaluations"], experiment.bootstrap_reps, experiment.reference, tables["episodes"]
+    )
+    expected = pd.read_csv(committed)
+    assert list(regenerated.columns) == list(expected.columns)
+    for column in expected.columns:
+        if expected[column].dtype == object:
+            assert regenerated[column].tolist() == expected[column].tolist(), column
+        else:
+            np.testing.assert_allclose(regenerated[column].to_numpy(float), expected[column].to_numpy(float), rtol=1e-9)
+
+
+@pytest.mark.parametrize("path", FILES, ids=IDS)
+def test_file_runs_end_to_end_on_a_tiny_budget(path):
+    experiment = read_experiment(str(path))
+    outcomes = run_experiment(experiment, workers=2, tiny=True)
+    assert [outcome.status for outcome in outcomes] == ["trained"] * len(experiment.configs)
+    assert {outcome.spec.algo for outcome in outcomes} == {config.algo for config in experiment.configs.values()}
+
+
+def write(folder: Path, text: str) -> Path:
+    path = folder / "experiments" / "probe.yml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+GOOD = """
+description: probe
+envs: [Pendulum-v1]
+seeds: [0, 1]
+n_timesteps: 200
+evaluation: {episodes: 1, final_episodes: 2}
+configs:
+  adc_small: {algo: adc, overrides: {learning_starts: 50, batch_size: 16, policy_kwargs: "dict(net_arch=[8])"}}
+  ddpg_small: {algo: ddpg, overrides: {learning_starts: 50, batch_size: 16, policy_kwargs: "dict(net_arch=[8])"}, label: DDPG}
+reference: adc_small
+bootstrap_reps: 100
+"""
+
+
+@pytest.mark.parametrize(
+    ("replace", "key"),
+    [
+        (("seeds: [0, 1]", "seeds: [0, 0]"), "seeds"),
+        (("algo: adc,", "algo: a2c,"), "configs.adc_small.algo"),
+        (("reference: adc_small", "reference: td3"), "reference"),
+        (("n_timesteps: 200", "n_timesteps: -5"), "n_timesteps"),
+        (("bootstrap_reps: 100", "bootstrap_reps: 100\nbudget: 3"), "the file"),
+        (("{episodes: 1, final_episodes: 2}", "{episodes: 0}"), "evaluation.episodes"),
+    ],
+)
+def test_bad_files_are_refused_naming_the_key(tmp_path, replace, key, capsys):
+    path = write(tmp_path, GOOD.replace(*replace))
+    with pytest.raises(ExperimentError, match=f"`{key}`"):
+        read_experiment(str(path))
+    assert main(["experiment", str(path)]) == 2
+    assert f"`{key}`" in capsys.readouterr().err
+    assert not (tmp_path / "runs").exists()
+    assert not (tmp_path / "results").exists()
+
+
+def test_invalid_override_is_refused_before_anything_runs(tmp_path, capsys):
+    path = write(tmp_path, GOOD.replace("learning_starts: 50, batch_size", "learning_starts: 50, batch_sise"))
+    assert main(["experiment", str(path)]) == 2
+    assert "batch_sise" in capsys.readouterr().err
+    assert not (tmp_path / "runs").exists()
+
+
+def test_cli_trains_resumes_and_reports(tmp_path, capsys):
+    path = write(tmp_path, GOOD)
+    assert main(["experiment", str(path), "--workers", "2"]) == 0
+    results = tmp_path / "results" / "probe"
+    final = pd.read_csv(results / "final.csv")
+    assert sorted(final["algo"].unique()) == ["adc_small", "ddpg_small"]
+    assert len(final) == 4
+    table = pd.read_csv(results / "summary.csv").set_index("config")
+    assert table.loc["adc_small", "n_runs"] == 2
+    assert np.isnan(table.loc["adc_small", "p_improvement_of_adc"])
+    assert 0.0 <= table.loc["ddpg_small", "p_improvement_of_adc"] <= 1.0
+    metadata = json.loads((results / "metadata.json").read_text())
+    assert metadata["configs"]["ddpg_small"]["hyperparams"] == "shipped"
+    assert metadata["configs"]["ddpg_small"]["overrides"]["batch_size"] == 16
+    assert metadata["resolved"]["adc_small"]["Pendulum-v1"]["n_timesteps"] == 200
+    # The curves keep the configurations' names; the figures are drawn with the labels.
+    assert set(pd.read_csv(results / "curves.csv")["algo"]) == {"adc_small", "ddpg_small"}
+    assert (results / "learning_curves.png").is_file()
+    # A second invocation finds every run finished and trains nothing.
+    capsys.readouterr()
+    assert main(["experiment", str(path), "--workers", "2"]) == 0
+    assert capsys.readouterr().out.count("skipped") == 4
+    metadata = json.loads((results / "metadata.json").read_text())
+    assert len(metadata["wall_time_s_per_invocation"]) == 2
+    # --report rewrites the summary from the tables alone, and leaves the training's metadata as it is.
+    (results / "summary.csv").unlink()
+    assert main(["experiment", str(path), "--report"]) == 0
+    assert (results / "summary.csv").is_file()
+    assert json.loads((results / "metadata.json").read_text()) == metadata
+
+
+def test_paths_are_relative_to_the_file(tmp_path):
+    path = write(tmp_path, GOOD + "runs: ../elsewhere/runs\nresults: ../elsewhere/results\n")
+    experiment = read_experiment(str(path))
+    assert experiment.runs == str(tmp_path / "elsewhere" / "runs")
+    assert experiment.results == str(tmp_path / "elsewhere" / "results")
+    shutil.rmtree(tmp_path / "experiments")
+
+
+def test_ctrl_c_exits_130_with_the_resume_message(tmp_path, monkeypatch, capsys):
+    import sb3_adc.experiment.experiments as experiments
+
+    def ctrl_c(*_, **__):
+        # What the engine raises when Ctrl-C reaches a grid (each run in progress saved its checkpoint first).
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(experiments, "run_benchmarks", ctrl_c)
+    assert main(["experiment", str(write(tmp_path, GOOD))]) == 130
+    assert "Re-run the same command to continue" in capsys.readouterr().err
