@@ -44,11 +44,19 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
     experience replay and soft target updates (Algorithm 1). Use
     :class:`~sb3_adc.common.noise.EpsilonGaussianNoise` as ``action_noise`` for the paper's exploration.
 
+    That interval critic is ``policy_kwargs=dict(critic_design="paper")``. The default critic,
+    ``critic_design="legendre"``, is not an interval critic in effect: its advantage is a polynomial in the
+    action with state-dependent coefficients, ``A(s, a) = sum_k c_k(s) P_k(a)`` (the family of NAF and
+    Q-functionals), and the interval baseline it subtracts, the mean of each Legendre term over the interval
+    centres, is below 1.7e-4 for 100 intervals and 4.2e-3 for 20 (at the default degree 4). So ``n_intervals``
+    barely matters for it: it shifts ``Q(s, .)`` by a constant in the action and leaves ``dQ/da``, which the
+    actor follows, unchanged (see :mod:`sb3_adc.adc.designs`).
+
     ADC is a special case of TD3, the way SB3's DDPG is, with a
     :class:`~sb3_adc.adc.policies.DuelingIntervalCritic` in place of the critic. Its defaults follow the
-    paper: one critic, the actor updated at every gradient step, no target-policy smoothing, soft target
-    updates, and a critic learning rate twice the actor's. The other defaults are SB3 DDPG's, so ADC is
-    a drop-in comparison against it.
+    paper, except the critic design: one critic, the actor updated at every gradient step, no target-policy
+    smoothing, soft target updates, and a critic learning rate twice the actor's. The other defaults are SB3
+    DDPG's, so ADC is a drop-in comparison against it.
 
     :param policy: The policy model to use (MlpPolicy, CnnPolicy, MultiInputPolicy, or an ``ADCPolicy``
         subclass)
@@ -85,7 +93,7 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
         the reported success rate, mean episode length, and mean reward over
     :param tensorboard_log: the log location for tensorboard (if None, no logging)
     :param policy_kwargs: additional arguments to be passed to the policy on creation, among them
-        ``n_intervals``, ``value_net_arch``, ``advantage_net_arch``, ``aggregation``,
+        ``critic_design``, ``n_intervals``, ``value_net_arch``, ``advantage_net_arch``, ``aggregation``,
         ``advantage_interpolation`` and ``n_critics`` (see :class:`~sb3_adc.adc.policies.ADCPolicy`)
     :param verbose: Verbosity level: 0 for no output, 1 for info messages (such as device or wrappers used),
         2 for debug messages

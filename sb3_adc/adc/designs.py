@@ -13,7 +13,11 @@ that interval. The designs here keep the equation and change what computes its t
   advantage of every interval is a polynomial of degree ``basis_degree`` in the interval centre:
   ``A(s, z) = sum_k c_k(s) P_k(centre_z)`` (Legendre polynomials ``P_k``). Neighbouring intervals share
   strength, every sample trains every interval's advantage, and the advantage is evaluated at the action
-  itself, ``A(s, a) = sum_k c_k(s) P_k(a)``, so ``dQ/da`` is a smooth polynomial.
+  itself, ``A(s, a) = sum_k c_k(s) P_k(a)``, so ``dQ/da`` is a smooth polynomial. The intervals are nearly
+  vestigial here: the baseline ``mean_z P_k(centre_z)`` is the midpoint rule for the integral of ``P_k`` over
+  ``[-1, 1]``, which is zero, and is below 1.7e-4 for 100 intervals and 4.2e-3 for 20 at the default degree 4.
+  So this design is a state-dependent polynomial advantage (the family of NAF and Q-functionals), and
+  ``n_intervals`` only shifts ``Q(s, .)`` by a constant in the action, leaving ``dQ/da`` unchanged.
 - ``"action_network"`` (:class:`ActionAdvantageNetwork`): ``V`` reads the state only; the advantage is a network
   over ``[s, a]`` evaluated at the action, centred on its mean (or maximum) over the interval centres:
   ``Q = V(s) + A(s, a) - mean_z A(s, centre_z)``.
@@ -153,7 +157,9 @@ class LegendreAdvantageNetwork(nn.Module):
 
     The interval advantages of the paper are this polynomial at the interval centres, so the mean (or max) over
     intervals of Eq. 13-14 (Eq. 11) is taken over the centres; the advantage of the action is the polynomial at the
-    action itself (no interpolation is needed).
+    action itself (no interpolation is needed). With the mean that baseline is nearly zero (each ``P_k`` averages
+    to zero over ``[-1, 1]``; over the centres, below 1.7e-4 for 100 intervals and 4.2e-3 for 20 at degree 4), so
+    ``n_intervals`` hardly matters: the critic is a polynomial advantage in the action, as in NAF or Q-functionals.
 
     :param features_dim: Number of state features
     :param action_dim: Number of action dimensions (advantage branches)

@@ -236,8 +236,11 @@ class DuelingIntervalCritic(BaseModel):
     - ``"paper"``: the paper's form, a shared trunk over (state, action) under both streams, one advantage output
       per interval (:class:`DuelingIntervalNetwork`);
     - ``"state_value"``: ``V`` from the state only, the paper's interval advantages on a trunk over (state, action);
-    - ``"legendre"``: ``V`` and a polynomial advantage from the state only, ``A(s, a) = sum_k c_k(s) P_k(a)``,
-      centred on its mean over the interval centres;
+    - ``"legendre"`` (the default): ``V`` and a polynomial advantage from the state only,
+      ``A(s, a) = sum_k c_k(s) P_k(a)``, centred on its mean over the interval centres. That mean is nearly zero
+      (below 1.7e-4 per coefficient for 100 intervals, 4.2e-3 for 20, at degree 4), so this is in effect a
+      state-dependent polynomial advantage (the family of NAF and Q-functionals) and ``n_intervals`` barely
+      changes it;
     - ``"action_network"``: ``V`` from the state only, an advantage network over (state, action) evaluated at the
       action and centred on its mean over the interval centres.
 
@@ -440,13 +443,15 @@ class ADCPolicy(ActorAverageTD3Policy):
     :param n_critics: Number of dueling critic networks (1 in the paper)
     :param share_features_extractor: Whether to share or not the features extractor between the actor and
         the critic (this saves computation time)
-    :param n_intervals: Number of uniform intervals per action dimension
+    :param n_intervals: Number of uniform intervals per action dimension (for ``"legendre"``, only the centres of
+        its nearly-zero baseline)
     :param value_net_arch: Hidden layer sizes of the value stream
     :param advantage_net_arch: Hidden layer sizes of the advantage stream
     :param aggregation: ``"mean"`` (Eq. 12-14) or ``"max"`` (Eq. 11)
     :param advantage_interpolation: ``"none"`` (the paper) or ``"linear"``
-    :param critic_design: What computes the value and advantage streams: ``"paper"`` (the paper's form),
-        ``"state_value"``, ``"legendre"`` or ``"action_network"`` (see :class:`DuelingIntervalCritic`)
+    :param critic_design: What computes the value and advantage streams: ``"paper"`` (the paper's interval
+        critic), ``"state_value"``, ``"legendre"`` (the default: a polynomial advantage in the action, on which
+        ``n_intervals`` has almost no effect) or ``"action_network"`` (see :class:`DuelingIntervalCritic`)
     :param basis_degree: Degree of the advantage polynomial of ``critic_design="legendre"``
     :param actor_average_tau: Not in the paper: with a value in ``(0, 1)``, the policy keeps ``actor_average``, a
         Polyak average of the actor's iterates (after the ``n``-th actor update, ``average <- (1 - t) average +

@@ -12,7 +12,7 @@ from torch import nn
 
 from sb3_adc import ADC
 from sb3_adc.adc.designs import MONOMIAL_MAX_DEGREE, LegendreAdvantageNetwork, legendre_basis, legendre_monomial_matrix
-from sb3_adc.adc.policies import CRITIC_DESIGNS, ADCPolicy, validate_critic_options
+from sb3_adc.adc.policies import CRITIC_DESIGNS, DEFAULT_BASIS_DEGREE, ADCPolicy, validate_critic_options
 from sb3_adc.config import HyperparamsError, resolve_entry
 
 NEW_DESIGNS = ["state_value", "legendre", "action_network"]
@@ -229,6 +229,41 @@ def test_every_sample_trains_every_interval_advantage_of_the_legendre_design():
     _, after, _ = critic.decompose(obs, actions)
     changed = (after - before).abs().mean(dim=0)[0]
     assert th.all(changed > 0)
+
+
+# The interval baseline of the default "legendre" critic, mean_z P_k(centre_z), is the midpoint rule for the
+# integral of P_k over [-1, 1], which is 0: at the shipped degree its largest term is P_4's, 4.154e-3 for 20
+# intervals and 1.666e-4 for 100. docs/modules/adc.rst quotes these bounds.
+@pytest.mark.parametrize(("n_intervals", "bound"), [(20, 4.2e-3), (100, 1.7e-4)])
+def test_legendre_interval_baseline_is_nearly_zero(n_intervals, bound):
+    grid = centres(n_intervals).double()
+    baseline = legendre_basis(grid, DEFAULT_BASIS_DEGREE).mean(dim=0)
+    assert baseline.abs().max().item() < bound
+    assert baseline.abs().max().item() > bound / 1.1  # the bound is the measured value, not a loose one
+
+
+def test_legendre_n_intervals_only_shifts_q_by_a_small_state_constant():
+    # Same weights, 20 or 100 intervals: Q(s, .) moves by -sum_k c_k(s) (b_k(20) - b_k(100)), a constant in the
+    # action at most 4.0e-3 sum_k |c_k(s)| (|A(s, a)| <= sum_k |c_k(s)| on [-1, 1]); dQ/da is unchanged.
+    th.manual_seed(0)
+    coarse = make_critic("legendre", action_dim=2, n_intervals=20)
+    fine = make_critic("legendre", action_dim=2, n_intervals=100)
+    fine.q_networks[0].load_state_dict(coarse.q_networks[0].state_dict())  # the partition's edges differ
+    obs, _ = batch(size=16)
+    actions = th.rand(5, 16, 2, generator=th.Generator().manual_seed(1)) * 2 - 1
+    actions.requires_grad_(True)
+    shifts, gradients = [], []
+    for critic in (coarse, fine):
+        q = th.stack([critic.q1_forward(obs, actions[j]) for j in range(5)])  # (5, 16, 1)
+        gradients.append(th.autograd.grad(q.sum(), actions)[0])
+        shifts.append(q.detach())
+    shift = shifts[0] - shifts[1]
+    th.testing.assert_close(shift, shift[:1].expand_as(shift), rtol=0, atol=1e-6)
+    th.testing.assert_close(gradients[0], gradients[1], rtol=1e-5, atol=1e-6)
+    _, coefficients = coarse.q_networks[0]._heads(obs)
+    scale = coefficients.abs().sum(dim=(1, 2)).detach()  # (16,)
+    assert th.all(shift[0, :, 0].abs() <= 4.0e-3 * scale + 1e-6)
+    assert shift.abs().max() > 0  # the baseline does change, just not by much
 
 
 @pytest.mark.parametrize("design", CRITIC_DESIGNS)
