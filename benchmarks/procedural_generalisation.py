@@ -80,6 +80,7 @@ import pandas as pd
 import torch as th
 import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
+from trajectories import plot_trajectories
 
 from sb3_adc.common.actor_average import ActorAverageTD3Policy
 from sb3_adc.common.atomic import write_atomically
@@ -96,7 +97,7 @@ from sb3_adc.experiment.benchmark import (
 )
 from sb3_adc.experiment.enjoy import load_model, load_run, model_path
 from sb3_adc.experiment.invocations import INVOCATIONS_JSON, read_invocations
-from sb3_adc.experiment.plots import plot_final_performance, plot_trajectories
+from sb3_adc.experiment.plots import plot_final_performance
 from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc.experiment.results import read_table
 from sb3_adc.experiment.settings import TrainSettings

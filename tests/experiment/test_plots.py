@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import importlib
 import itertools
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -15,7 +17,6 @@ from sb3_adc.experiment.plots import (
     plot_comparisons,
     plot_final_performance,
     plot_reward_variance,
-    plot_trajectories,
 )
 from sb3_adc.experiment.statistics import (
     final_performance,
@@ -175,8 +176,12 @@ def test_sb3_adc_plot_writes_profiles_and_probability_of_improvement(tmp_path, c
         plot_comparisons(pd.DataFrame(columns=["env", "algo", "seed", "mean_return"]), str(tmp_path))
 
 
-def test_trajectory_panels_show_each_course_and_count_the_collision_free_runs(tmp_path, saved_figures):
+def test_trajectory_panels_show_each_course_and_count_the_collision_free_runs(tmp_path, saved_figures, monkeypatch):
     from sb3_adc_envs.lidar_course import load_course
+
+    # The benchmark scripts' figure of the paths (benchmarks/trajectories.py), imported as the scripts do.
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    plot_trajectories = importlib.import_module("trajectories").plot_trajectories
 
     course = load_course("unseen_posts")
     start = np.array([course.start.x, course.start.y])
