@@ -9,11 +9,11 @@ import pytest
 from sb3_adc.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
-SHIPPED = ROOT / "benchmarks" / "results" / "critic_study" / "shipped"
+SHIPPED = ROOT / "benchmarks" / "results" / "noisy_pendulum_shipped"
 
 
 def test_the_shipped_grid_learning_curves_rebuild_from_the_committed_csvs(tmp_path, capsys):
-    # The critic study plots with 5000 bootstrap resamples from seed 0; each configuration is bootstrapped on its
+    # The experiments plot with 5000 bootstrap resamples from seed 0; each configuration is bootstrapped on its
     # own, so two of them rebuild their rows exactly.
     algos = ["adc_shipped", "ddpg_shipped"]
     args = ["plot", "--csv", str(SHIPPED / "evaluations.csv"), "-o", str(tmp_path), "--reps", "5000", "--algos", *algos]
@@ -23,7 +23,7 @@ def test_the_shipped_grid_learning_curves_rebuild_from_the_committed_csvs(tmp_pa
     committed = pd.read_csv(SHIPPED / "curves.csv")
     committed = committed[committed["algo"].isin(algos)].reset_index(drop=True)
     pd.testing.assert_frame_equal(rebuilt, committed, check_exact=False, rtol=1e-9)
-    # The final-return table of the page: the IQM of each configuration from the committed final.csv.
+    # The final-return table of the results page: the IQM of each configuration from the committed final.csv.
     summary = pd.read_csv(SHIPPED / "summary.csv").set_index("config")
     performance = pd.read_csv(tmp_path / "final_performance.csv").set_index("algo")
     for algo in algos:
