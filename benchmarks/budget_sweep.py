@@ -132,7 +132,7 @@ def checkpoint_line(rows: list[dict[str, Any]]) -> str:
 def winner(sweep: pd.DataFrame, configs: Mapping[str, Mapping[str, Any]]) -> str:
     """
     The configuration a pre-registered sweep chooses (the rule written down before DDPG's and SAC's sweeps ran,
-    ``docs/results/critic_study.rst``): the highest mean validation success across runs at the last checkpoint, of
+    ``docs/results/critic_designs.rst``): the highest mean validation success across runs at the last checkpoint, of
     each configuration as deployed (an averaged actor, not its ``"(actor itself)"`` rows); on a tie, the one with the
     longer returns (``n_steps``, 1 when unnamed). Success is compared as counts over equal episodes, so a tie is exact.
 

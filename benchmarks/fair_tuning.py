@@ -12,7 +12,7 @@ epsilon-gated exploration schedule (:mod:`sb3_adc.experiment.samplers`).
 
 The studies go to ``benchmarks/runs/fair_tuning/`` (not committed; re-running the command resumes them). The
 committed results in ``benchmarks/results/fair_tuning/``: each study's ``trials.csv``, the winners as
-``hyperparams/{algo}.yml`` (the files the evidence grid of ``benchmarks/critic_study.py --grid tuned`` trains on
+``hyperparams/{algo}.yml`` (the files the experiment ``benchmarks/experiments/noisy_pendulum_equal_tuning.yml`` trains on
 fresh seeds) and ``summary.md``.
 
 ``--study lidar`` tunes the four ``sb3_adc/LidarObstacleCourse-v1`` entries the same way, for generalisation: a
@@ -61,7 +61,8 @@ ENV_ID = "sb3_adc/NoisyPendulum-v1"
 SEEDS = (0, 1)
 #: Algorithm -> the file of its starting entry. TD3 and SAC start from the RL Zoo's settings, which were their
 #: shipped entries until the winners of this tuning replaced them; ADC and DDPG from their entries as shipped
-#: when this tuning ran (``configs/warmup5000``; the warm-up ablation of ``critic_study.py`` changed them since).
+#: when this tuning ran (``configs/warmup5000``; the warm-up ablation, ``experiments/warmup_ablation.yml``, changed
+#: them since).
 STARTING_POINTS = {
     **{algo: str(ROOT / "configs" / "rl_zoo" / f"{algo}.yml") for algo in ("td3", "sac")},
     **{algo: str(ROOT / "configs" / "warmup5000" / f"{algo}.yml") for algo in ("adc", "ddpg")},
@@ -73,7 +74,7 @@ LIDAR_ENV_ID = "sb3_adc/LidarObstacleCourse-v1"
 #: and for ADC also its best updates there (TD3's additions, an actor learning rate of 3e-4).
 LIDAR_STARTING_POINTS = {algo: str(ROOT / "configs" / "lidar_start" / f"{algo}.yml") for algo in ALGOS}
 #: Fixed for every algorithm of the lidar study: the discount and the potential-based clearance shaping (at the
-#: same discount) that raised both ADC and TD3 in the budget sweeps (docs/results/critic_study.rst).
+#: same discount) that raised both ADC and TD3 in the budget sweeps (docs/results/critic_designs.rst).
 LIDAR_FIXED: dict[str, Any] = {
     "gamma": 0.98,
     "env_wrapper": [{"sb3_adc_envs.wrappers.ClearanceShaping": {"gamma": 0.98}}],

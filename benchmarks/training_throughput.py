@@ -48,7 +48,7 @@ RESULTS_DIR = Path(__file__).parent / "results"
 MODELS = ["DDPG", *CRITIC_DESIGNS]
 #: ``"action_network"`` evaluates its advantage network at every interval centre, so its cost grows with
 #: ``n_intervals``; it is timed with the 16 intervals it is used with in the critic study
-#: (``benchmarks/critic_study.py``, configuration ``adc_action_network``).
+#: (``benchmarks/experiments/critic_design_screen.yml``, configuration ``adc_action_network``).
 ACTION_NETWORK_INTERVALS = 16
 
 
