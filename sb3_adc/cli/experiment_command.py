@@ -67,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
     for env_id in experiment.envs:
         check_env_id(env_id)
     if args.report:
-        write_report(experiment, experiment.results)
+        write_report(experiment, experiment.results, figures=experiment.figures)
         print(f"Wrote the summary and figures of {experiment.name} in {experiment.results}")
         return 0
     experiment.resolved()  # every configuration's entries, checked before anything runs

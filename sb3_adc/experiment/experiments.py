@@ -19,7 +19,7 @@ The file (read with the hyperparameter files' bounded YAML reader: nothing in it
     threshold: -300                         # optional: runs that stay above this return, and how soon
     runs: ../runs/noisy_pendulum_equal_tuning   # optional (default ../runs/<name>): shared runs train once
     results: ../results/noisy_pendulum_shipped  # optional (default ../results/<name>)
-    figures: ../../docs/_static/benchmarks      # optional: where the figures go, as <name>_<figure>.png
+    figures: ../../docs/_static/benchmarks      # optional: where the figures go, as <name>_<figure>.png (none kept without)
 
 Paths are relative to the file's folder. ``hyperparams`` is a folder of ``{algo}.yml`` files (default: the shipped
 ones); ``overrides`` are ``-params``. Each configuration is a benchmark grid in ``{runs}/{config}/``; the tables
@@ -108,7 +108,7 @@ class Experiment:
     :param bootstrap_reps: Bootstrap replications of the CIs
     :param runs: Folder of the runs (one grid per configuration)
     :param results: Folder of the tables
-    :param figures: Folder of the figures (``None``: with the tables)
+    :param figures: Folder of the figures (``None``: none is kept)
     """
 
     name: str
@@ -301,7 +301,7 @@ def run_experiment(
 ) -> list[RunOutcome]:
     """
     Train (or resume, or skip when finished) every run of the experiment in one pool of workers, then write its
-    tables and figures (:func:`write_report`).
+    tables and figures (:func:`~sb3_adc.experiment.summary.write_report`).
 
     :param experiment: The experiment
     :param workers: Processes of the local backend (``None``: the number of CPUs)

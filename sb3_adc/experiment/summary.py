@@ -214,7 +214,7 @@ def write_report(experiment: Experiment, output: str, figures: str | None = None
 
     :param experiment: The experiment
     :param output: Its results folder
-    :param figures: Where to move the figures, as ``{name}_{figure}.png`` (``None``: they stay in ``output``)
+    :param figures: Where to move the figures, as ``{name}_{figure}.png`` (``None``: none is kept)
     :param wall_time_s: Seconds this invocation trained, added to the recorded ones (``None``: no training,
         ``metadata.json`` is left as it is)
     """
@@ -241,9 +241,11 @@ def write_report(experiment: Experiment, output: str, figures: str | None = None
     for path in plots.tables:
         if inverse and path.endswith(".csv"):
             read_table(path).replace({"algo": inverse}).to_csv(path, index=False)
-    if figures is not None:
-        os.makedirs(figures, exist_ok=True)
-        for figure in plots.figures:
+    for figure in plots.figures:
+        if figures is None:
+            os.remove(figure)
+        else:
+            os.makedirs(figures, exist_ok=True)
             os.replace(figure, os.path.join(figures, f"{experiment.name}_{os.path.basename(figure)}"))
     if wall_time_s is not None:
         _write_metadata(experiment, output, wall_time_s)

@@ -36,21 +36,18 @@ def test_file_resolves_to_the_settings_recorded_with_its_results(path):
     assert metadata["experiment"] == f"benchmarks/experiments/{path.name}"
 
 
-@pytest.mark.parametrize("path", FILES, ids=IDS)
-def test_summary_regenerates_from_the_committed_tables(path):
-    """The committed ``summary.csv`` is what the engine computes from the committed run tables."""
-    experiment = read_experiment(str(path))
+#: Columns of the summary that do not depend on the bootstrap replications (point estimates and counts).
+POINT_COLUMNS = ("env", "config", "n_runs", "final_iqm", "final_mean", "final_std", "auc_iqm", "auc_mean")
+
+
+def regenerated_summary(experiment, reps):
     results = Path(experiment.results)
-    committed = results / "summary.csv"
-    if not committed.is_file():
-        pytest.skip("no summary committed with these results")
     tables = {name: pd.read_csv(results / f"{name}.csv") for name in ("final", "evaluations", "episodes")}
-    regenerated = summary(
-        tables["final"], tables["evaluations"], experiment.bootstrap_reps, experiment.reference, tables["episodes"]
-    )
-    expected = pd.read_csv(committed)
-    assert list(regenerated.columns) == list(expected.columns)
-    for column in expected.columns:
+    return summary(tables["final"], tables["evaluations"], reps, experiment.reference, tables["episodes"])
+
+
+def assert_same_columns(regenerated, expected, columns):
+    for column in columns:
         if expected[column].dtype == object:
             assert regenerated[column].tolist() == expected[column].tolist(), column
         else:
@@ -58,9 +55,31 @@ def test_summary_regenerates_from_the_committed_tables(path):
 
 
 @pytest.mark.parametrize("path", FILES, ids=IDS)
+def test_summary_point_estimates_regenerate_from_the_committed_tables(path):
+    """The committed ``summary.csv`` is what the engine computes from the committed run tables (its point
+    estimates here, with few bootstrap replications; every column for one experiment below)."""
+    experiment = read_experiment(str(path))
+    committed = Path(experiment.results) / "summary.csv"
+    if not committed.is_file():
+        pytest.skip("no summary committed with these results")
+    expected = pd.read_csv(committed)
+    regenerated = regenerated_summary(experiment, reps=100)
+    assert list(regenerated.columns) == list(expected.columns)
+    points = [*POINT_COLUMNS, *[column for column in ("run_time_s_median", "p_improvement_of_adc") if column in expected]]
+    assert_same_columns(regenerated, expected, points)
+
+
+def test_summary_regenerates_with_its_confidence_intervals():
+    """Every column of the summary the README's Pendulum row is built from, intervals included."""
+    experiment = read_experiment(str(ROOT / "benchmarks" / "experiments" / "noisy_pendulum_shipped.yml"))
+    expected = pd.read_csv(Path(experiment.results) / "summary.csv")
+    assert_same_columns(regenerated_summary(experiment, experiment.bootstrap_reps), expected, expected.columns)
+
+
+@pytest.mark.parametrize("path", FILES, ids=IDS)
 def test_file_runs_end_to_end_on_a_tiny_budget(path):
     experiment = read_experiment(str(path))
-    outcomes = run_experiment(experiment, workers=2, tiny=True)
+    outcomes = run_experiment(experiment, workers=1, tiny=True)
     assert [outcome.status for outcome in outcomes] == ["trained"] * len(experiment.configs)
     assert {outcome.spec.algo for outcome in outcomes} == {config.algo for config in experiment.configs.values()}
 
@@ -83,6 +102,7 @@ configs:
   ddpg_small: {algo: ddpg, overrides: {learning_starts: 50, batch_size: 16, policy_kwargs: "dict(net_arch=[8])"}, label: DDPG}
 reference: adc_small
 bootstrap_reps: 100
+figures: ../figures
 """
 
 
@@ -131,7 +151,8 @@ def test_cli_trains_resumes_and_reports(tmp_path, capsys):
     assert metadata["resolved"]["adc_small"]["Pendulum-v1"]["n_timesteps"] == 200
     # The curves keep the configurations' names; the figures are drawn with the labels.
     assert set(pd.read_csv(results / "curves.csv")["algo"]) == {"adc_small", "ddpg_small"}
-    assert (results / "learning_curves.png").is_file()
+    assert (tmp_path / "figures" / "probe_learning_curves.png").is_file()
+    assert not list(results.glob("*.png"))
     # A second invocation finds every run finished and trains nothing.
     capsys.readouterr()
     assert main(["experiment", str(path), "--workers", "2"]) == 0
