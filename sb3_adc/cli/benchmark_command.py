@@ -5,12 +5,18 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from collections.abc import Callable
+from typing import TypeVar
 
 from tqdm import tqdm
 
 from sb3_adc.cli.common import CommandError, apply_runtime_arguments, key_values
 from sb3_adc.config import ALGORITHMS, check_env_id
 from sb3_adc.experiment.benchmark import INTERRUPTED, BenchmarkSettings, RunOutcome, run_benchmark
+
+Result = TypeVar("Result")
+#: What a grid calls as each run finishes: (outcome, runs done, runs in total).
+Reporter = Callable[[RunOutcome, int, int], None]
 
 DESCRIPTION = """\
 Train every algorithm on every environment with every seed, one run per process (local backend)
@@ -58,13 +64,53 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--eval-freq", type=int, default=None, help="evaluate every K timesteps (default: 20 per run)")
     parser.add_argument("--eval-episodes", type=int, default=5, help="episodes per evaluation (default: 5)")
     parser.add_argument("--final-eval-episodes", type=int, default=10, help="episodes of the final evaluation (default: 10)")
-    parser.add_argument("--backend", choices=["local", "ray"], default="local", help="local process pool or Ray tasks")
-    parser.add_argument("--workers", type=int, default=None, help="local backend: parallel processes (default: CPU count)")
-    parser.add_argument("--address", default=None, help="Ray backend: cluster address (default: start a local Ray)")
+    add_backend_arguments(parser)
     parser.add_argument("--device", default="cpu", help="PyTorch device of the runs (default: cpu)")
     parser.add_argument("--num-threads", type=int, default=1, help=argparse.SUPPRESS)
     parser.add_argument("--gym-packages", nargs="+", default=[], metavar="MODULE", help="modules registering environments")
     parser.set_defaults(handler=run)
+
+
+def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
+    """
+    ``--backend``, ``--workers`` and ``--address``: where the runs of a grid go (``benchmark`` and ``experiment``).
+
+    :param parser: The sub-command's parser
+    """
+    parser.add_argument("--backend", choices=["local", "ray"], default="local", help="local process pool or Ray tasks")
+    parser.add_argument("--workers", type=int, default=None, help="local backend: parallel processes (default: CPU count)")
+    parser.add_argument("--address", default=None, help="Ray backend: cluster address (default: start a local Ray)")
+
+
+def run_with_progress(n_runs: int, grid: Callable[[Reporter], Result], name_runs: bool = False) -> Result | None:
+    """
+    Run ``grid(report)`` behind a progress bar that prints each run as it finishes (and a failed run's traceback).
+
+    :param n_runs: Runs in the grid
+    :param grid: Runs the grid, calling the report it is given as each run finishes
+    :param name_runs: Prefix each line with the run's grid (the last folder of its log folder: an experiment's
+        configuration)
+    :return: What ``grid`` returns; ``None`` after Ctrl-C, once the resume message is printed
+    """
+    progress = tqdm(total=n_runs, unit="run")
+
+    def report(outcome: RunOutcome, done: int, total: int) -> None:
+        final = outcome.final
+        result = "" if final is None else f": final return {final['mean_return']:.2f} +/- {final['std_return']:.2f}"
+        name = f"{os.path.basename(os.path.normpath(outcome.log_folder))}: " if name_runs else ""
+        progress.write(f"[{done}/{total}] {name}{outcome.spec} {outcome.status}{result}")
+        if outcome.status == "failed":
+            progress.write(outcome.error)
+        progress.update(1)
+
+    try:
+        return grid(report)
+    except KeyboardInterrupt:
+        progress.close()
+        print(f"\n{INTERRUPTED}", file=sys.stderr)
+        return None
+    finally:
+        progress.close()
 
 
 def _seeds(args: argparse.Namespace) -> list[int]:
@@ -105,24 +151,14 @@ def run(args: argparse.Namespace) -> int:
         f"Benchmark: {len(settings.algos)} algorithms x {len(settings.env_ids)} environments x {len(settings.seeds)} seeds "
         f"= {n_runs} runs in {settings.log_folder} ({args.backend} backend)"
     )
-    progress = tqdm(total=n_runs, unit="run")
-
-    def report(outcome: RunOutcome, done: int, total: int) -> None:
-        final = outcome.final
-        result = "" if final is None else f": final return {final['mean_return']:.2f} +/- {final['std_return']:.2f}"
-        progress.write(f"[{done}/{total}] {outcome.spec} {outcome.status}{result}")
-        if outcome.status == "failed":
-            progress.write(outcome.error)
-        progress.update(1)
-
-    try:
-        result = run_benchmark(settings, backend=args.backend, workers=args.workers, address=args.address, report=report)
-    except KeyboardInterrupt:
-        progress.close()
-        print(f"\n{INTERRUPTED}", file=sys.stderr)
+    result = run_with_progress(
+        n_runs,
+        lambda report: run_benchmark(
+            settings, backend=args.backend, workers=args.workers, address=args.address, report=report
+        ),
+    )
+    if result is None:
         return 130
-    finally:
-        progress.close()
     for name, path in result.tables.items():
         print(f"Wrote {name}: {path}")
     if result.failures:

@@ -4,13 +4,10 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 
-from tqdm import tqdm
-
+from sb3_adc.cli.benchmark_command import add_backend_arguments, run_with_progress
 from sb3_adc.cli.common import CommandError, apply_runtime_arguments
 from sb3_adc.config import check_env_id
-from sb3_adc.experiment.benchmark import INTERRUPTED, RunOutcome
 from sb3_adc.experiment.experiments import read_experiment, run_experiment
 from sb3_adc.experiment.summary import write_report
 
@@ -47,9 +44,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     mode.add_argument(
         "--tiny", action="store_true", help="a check: one seed, one environment, a few hundred steps, in a temporary folder"
     )
-    parser.add_argument("--backend", choices=["local", "ray"], default="local", help="local process pool or Ray tasks")
-    parser.add_argument("--workers", type=int, default=None, help="local backend: parallel processes (default: CPU count)")
-    parser.add_argument("--address", default=None, help="Ray backend: cluster address (default: start a local Ray)")
+    add_backend_arguments(parser)
     parser.set_defaults(handler=run, device="cpu", num_threads=1, gym_packages=[])
 
 
@@ -74,24 +69,13 @@ def run(args: argparse.Namespace) -> int:
     n_runs = len(experiment.configs) * (1 if args.tiny else len(experiment.envs) * len(experiment.seeds))
     print(f"Experiment {experiment.name}: {experiment.description}")
     print(f"{len(experiment.configs)} configurations, {n_runs} runs ({args.backend} backend)")
-    progress = tqdm(total=n_runs, unit="run")
-
-    def report(outcome: RunOutcome, done: int, total: int) -> None:
-        name = os.path.basename(os.path.normpath(outcome.log_folder))
-        result = "" if outcome.final is None else f": final return {outcome.final['mean_return']:.2f}"
-        progress.write(f"[{done}/{total}] {name}: {outcome.spec} {outcome.status}{result}")
-        if outcome.status == "failed":
-            progress.write(outcome.error)
-        progress.update(1)
-
-    try:
-        outcomes = run_experiment(experiment, args.workers, args.backend, args.address, report, tiny=args.tiny)
-    except KeyboardInterrupt:
-        progress.close()
-        print(f"\n{INTERRUPTED}", file=sys.stderr)
+    outcomes = run_with_progress(
+        n_runs,
+        lambda report: run_experiment(experiment, args.workers, args.backend, args.address, report, tiny=args.tiny),
+        name_runs=True,
+    )
+    if outcomes is None:
         return 130
-    finally:
-        progress.close()
     failures = [outcome for outcome in outcomes if outcome.status == "failed"]
     if failures:
         print(f"{len(failures)} of {n_runs} runs failed; re-run the same command to retry them.")
