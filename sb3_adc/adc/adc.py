@@ -11,12 +11,13 @@ from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.save_util import load_from_zip_file
-from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, PyTorchObs, Schedule
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, PyTorchObs, ReplayBufferSamples, Schedule
 from stable_baselines3.common.utils import polyak_update
 from torch.nn import functional as F
 
 from sb3_adc.adc.policies import (
     DEFAULT_CRITIC_DESIGN,
+    GREEDY_CRITIC_DESIGNS,
     ADCPolicy,
     CnnPolicy,
     DuelingIntervalCritic,
@@ -32,6 +33,34 @@ SelfADC = TypeVar("SelfADC", bound="ADC")
 
 #: Ratio of the critic's to the actor's learning rate in the ADC paper (Tables 1-3).
 PAPER_CRITIC_LR_FACTOR = 2.0
+
+
+def check_target_greedy_mix(target_greedy_mix: object) -> None:
+    """
+    Raise ``ValueError`` unless ``target_greedy_mix`` is a number in ``[0, 1]`` (see :class:`ADC`).
+
+    :param target_greedy_mix: Share of the greedy value ``Q'(s', z*)`` in the TD target's next-state value
+    """
+    if (
+        isinstance(target_greedy_mix, bool)
+        or not isinstance(target_greedy_mix, (int, float))
+        or not 0 <= target_greedy_mix <= 1
+    ):
+        raise ValueError(f"`target_greedy_mix` must be a number in [0, 1], got {target_greedy_mix!r}.")
+
+
+def check_actor_greedy_weight(actor_greedy_weight: object) -> None:
+    """
+    Raise ``ValueError`` unless ``actor_greedy_weight`` is a finite number >= 0 (see :class:`ADC`).
+
+    :param actor_greedy_weight: Weight of the actor's pull toward the best interval centre
+    """
+    if (
+        isinstance(actor_greedy_weight, bool)
+        or not isinstance(actor_greedy_weight, (int, float))
+        or not 0 <= actor_greedy_weight < float("inf")
+    ):
+        raise ValueError(f"`actor_greedy_weight` must be a finite number >= 0, got {actor_greedy_weight!r}.")
 
 
 class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
@@ -50,7 +79,9 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
     Q-functionals), and the interval baseline it subtracts, the mean of each Legendre term over the interval
     centres, is below 1.7e-4 for 100 intervals and 4.2e-3 for 20 (at the default degree 4). So ``n_intervals``
     barely matters for it: it shifts ``Q(s, .)`` by a constant in the action and leaves ``dQ/da``, which the
-    actor follows, unchanged (see :mod:`sb3_adc.adc.designs`).
+    actor follows, unchanged (see :mod:`sb3_adc.adc.designs`). It matters with ``target_greedy_mix`` or
+    ``actor_greedy_weight``: they search the grid of interval centres for the best action, ``n_intervals`` points
+    per action dimension.
 
     ADC is a special case of TD3, the way SB3's DDPG is, with a
     :class:`~sb3_adc.adc.policies.DuelingIntervalCritic` in place of the critic. Its defaults follow the
@@ -89,6 +120,17 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
     :param target_policy_noise: Standard deviation of the target-policy smoothing noise (0, none, in the paper;
         use it with ``policy_kwargs=dict(n_critics=2)`` for a TD3-style variant)
     :param target_noise_clip: Limit for absolute value of target policy smoothing noise.
+    :param target_greedy_mix: Not in the paper: the share ``m`` in ``[0, 1]`` of the greedy value in the TD target's
+        next-state value (Eq. 11 read as "V is the greedy value"), ``(1 - m) Q'(s', mu'(s') [+ smoothing noise]) +
+        m Q'(s', z*)`` with ``z* = argmax_z Q_1(s', z)`` over the grid of interval centres, chosen by the first
+        *online* critic and valued by the *target* critics (double-Q style; with several critics, the minimum of
+        the target critics at ``z*``). 0 (default): the paper's target. Needs a critic design in
+        ``GREEDY_CRITIC_DESIGNS`` (``"legendre"``, the default)
+    :param actor_greedy_weight: Not in the paper: the weight ``w >= 0`` of a greedy policy-improvement term added
+        to the actor loss, ``w * mean_s 1[Q_1(s, z*) > Q_1(s, mu(s))] ||mu(s) - z*(s)||^2``: a pull toward the
+        best interval centre, only on the states where it beats the actor's action, which can move the actor out
+        of a local optimum of ``Q_1(s, .)`` that the gradient alone keeps it in. 0 (default): the paper's actor
+        loss. Needs a critic design in ``GREEDY_CRITIC_DESIGNS``
     :param stats_window_size: Window size for the rollout logging, specifying the number of episodes to average
         the reported success rate, mean episode length, and mean reward over
     :param tensorboard_log: the log location for tensorboard (if None, no logging)
@@ -133,6 +175,8 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
         policy_delay: int = 1,
         target_policy_noise: float = 0.0,
         target_noise_clip: float = 0.0,
+        target_greedy_mix: float = 0.0,
+        actor_greedy_weight: float = 0.0,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
@@ -141,6 +185,8 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ):
+        check_target_greedy_mix(target_greedy_mix)
+        check_actor_greedy_weight(actor_greedy_weight)
         if env is not None:
             # Check the action space before SB3 does, for an error that says what ADC accepts.
             env = maybe_make_env(env, verbose)
@@ -173,6 +219,8 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
             _init_setup_model=False,
         )
         self.critic_learning_rate = critic_learning_rate
+        self.target_greedy_mix = float(target_greedy_mix)
+        self.actor_greedy_weight = float(actor_greedy_weight)
         self._last_batch: tuple[PyTorchObs, th.Tensor] | None = None
         if _init_setup_model:
             self._setup_model()
@@ -187,6 +235,14 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
         # Record the critic design in the saved policy_kwargs, so that a file keeps its design if the default changes.
         self.policy_kwargs = {"critic_design": DEFAULT_CRITIC_DESIGN, **self.policy_kwargs}
         super()._setup_model()
+        if self.critic.critic_design not in GREEDY_CRITIC_DESIGNS:
+            for name in ("target_greedy_mix", "actor_greedy_weight"):
+                if getattr(self, name) > 0:
+                    raise ValueError(
+                        f"`{name}` needs the Q-value of every interval centre, which critic_design="
+                        f"{self.critic.critic_design!r} does not give in one pass: use a critic_design in "
+                        f"{GREEDY_CRITIC_DESIGNS} or {name}=0."
+                    )
         # Parameter lists of the per-step updates, gathered once rather than at every gradient step.
         self._actor_parameters = list(self.actor.parameters())
         self._target_updates = [
@@ -207,20 +263,8 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
         for _ in range(gradient_steps):
             self._n_updates += 1
             replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
-            # For n-step replay, discount factor is gamma**n_steps (when no early termination)
-            discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
-
-            with th.no_grad():
-                # Algorithm 1, lines 9-11: y = r + gamma * Q'(s', mu'(s'))
-                next_actions = self.actor_target(replay_data.next_observations)
-                if self.target_policy_noise > 0:
-                    noise = next_actions.clone().normal_(0, self.target_policy_noise)
-                    noise = noise.clamp(-self.target_noise_clip, self.target_noise_clip)
-                    next_actions = (next_actions + noise).clamp(-1, 1)
-                next_q_values = self.critic_target(replay_data.next_observations, next_actions)
-                # Clipped double-Q: the minimum over the critics (a no-op with the paper's single critic)
-                next_q_value = next_q_values[0] if len(next_q_values) == 1 else th.cat(next_q_values, dim=1).amin(1, True)
-                target_q_values = replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_value
+            # Algorithm 1, lines 9-11 (with the greedy value when target_greedy_mix > 0)
+            target_q_values = self.target_q_values(replay_data)
 
             # Line 12: minimise the squared TD error of every dueling critic network
             current_q_values = self.critic(replay_data.observations, replay_data.actions)
@@ -233,8 +277,8 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
             self.critic.optimizer.step()
 
             if self._n_updates % self.policy_delay == 0:
-                # Line 13: deterministic policy gradient through the dueling critic
-                actor_loss = -self.critic.q1_forward(replay_data.observations, self.actor(replay_data.observations)).mean()
+                # Line 13: deterministic policy gradient through the dueling critic (and the greedy pull, if any)
+                actor_loss = self.actor_loss(replay_data.observations)
                 actor_losses.append(actor_loss.item())
 
                 self.actor.optimizer.zero_grad()
@@ -258,6 +302,60 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
         if gradient_steps > 0:
             # The critic's streams on this batch are computed only when the logs are written (see `dump_logs`).
             self._last_batch = (replay_data.observations, replay_data.actions)
+
+    def target_q_values(self, replay_data: ReplayBufferSamples) -> th.Tensor:
+        """
+        The TD targets of a batch (Algorithm 1, lines 9-11), without gradient: ``y = r + gamma (1 - done) Q_next``
+        with the paper's ``Q_next = Q'(s', mu'(s'))`` (TD3's smoothing noise added to ``mu'(s')`` when
+        ``target_policy_noise > 0``, and the minimum over the target critics when there are several), mixed with the
+        greedy value when ``target_greedy_mix = m > 0``::
+
+            Q_next = (1 - m) Q'(s', mu'(s') [+ noise]) + m min_i Q'_i(s', z*),   z* = argmax_z Q_1(s', z)
+
+        ``z*`` is the best point of the grid of interval centres for the first *online* critic
+        (:meth:`~sb3_adc.adc.policies.DuelingIntervalCritic.greedy_action`), valued by the *target* critics.
+
+        :param replay_data: A batch of transitions; ``discounts`` (n-step replay) replace ``gamma`` when set
+        :return: ``(batch, 1)``
+        """
+        # For n-step replay, discount factor is gamma**n_steps (when no early termination)
+        discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
+        next_observations = replay_data.next_observations
+        mix = self.target_greedy_mix
+        with th.no_grad():
+            if mix < 1:
+                next_actions = self.actor_target(next_observations)
+                if self.target_policy_noise > 0:
+                    noise = next_actions.clone().normal_(0, self.target_policy_noise)
+                    noise = noise.clamp(-self.target_noise_clip, self.target_noise_clip)
+                    next_actions = (next_actions + noise).clamp(-1, 1)
+                next_q_value = _min_over_critics(self.critic_target(next_observations, next_actions))
+            if mix > 0:
+                greedy_actions, _ = self.critic.greedy_action(next_observations)
+                greedy_q_value = _min_over_critics(self.critic_target(next_observations, greedy_actions))
+                next_q_value = greedy_q_value if mix == 1 else (1 - mix) * next_q_value + mix * greedy_q_value
+            return replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_value
+
+    def actor_loss(self, observations: th.Tensor) -> th.Tensor:
+        """
+        The actor loss of a batch (Algorithm 1, line 13; Eq. 15): ``-mean_s Q_1(s, mu(s))``, the deterministic policy
+        gradient through the first critic, plus, when ``actor_greedy_weight = w > 0``, the greedy policy-improvement
+        term ``w mean_s 1[Q_1(s, z*) > Q_1(s, mu(s))] ||mu(s) - z*(s)||^2`` with ``z* = argmax_z Q_1(s, z)`` over the
+        grid of interval centres (a constant: the critic gets no gradient from this term).
+
+        :param observations: Observations
+        :return: a scalar, with gradients for the actor (and, through ``Q_1(s, mu(s))``, the critic's weights, which
+            :meth:`train` leaves out)
+        """
+        actions = self.actor(observations)
+        q_values = self.critic.q1_forward(observations, actions)
+        loss = -q_values.mean()
+        if self.actor_greedy_weight > 0:
+            greedy_actions, greedy_q_values = self.critic.greedy_action(observations)
+            improves = greedy_q_values > q_values.detach()
+            pull = (actions - greedy_actions).square().sum(dim=1, keepdim=True)
+            loss = loss + self.actor_greedy_weight * th.where(improves, pull, 0.0).mean()
+        return loss
 
     def dump_logs(self) -> None:
         """Write log data, with the critic's diagnostics on the last training batch: ``train/value_mean`` (mean of
@@ -356,6 +454,11 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
             saved = (custom_objects or {}).get("policy_kwargs") or {}
             kwargs = {**kwargs, "policy_kwargs": {"critic_design": saved.get("critic_design", DEFAULT_CRITIC_DESIGN), **given}}
         return custom_objects, kwargs
+
+
+def _min_over_critics(q_values: tuple[th.Tensor, ...]) -> th.Tensor:
+    """Clipped double-Q: the minimum over the critics' ``(batch, 1)`` values (the value itself for a single critic)."""
+    return q_values[0] if len(q_values) == 1 else th.cat(q_values, dim=1).amin(1, True)
 
 
 def _design_of_files_without_one(

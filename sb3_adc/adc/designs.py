@@ -27,6 +27,11 @@ advantages of the interval centres ``(batch, action_dim, n_intervals)``, and ``q
 ``(batch, 1)``. With several action dimensions the advantage is one branch per dimension, summed
 (:class:`LegendreAdvantageNetwork`), or a network of the whole action centred on a Latin-hypercube set of
 interval centres (:class:`ActionAdvantageNetwork`).
+
+Only ``"legendre"`` reads every interval centre's ``Q`` off one pass (``greedy_intervals``, used by ADC's greedy
+targets and greedy policy improvement): its streams read the state only and its ``Q`` is additive across action
+dimensions. The other designs' advantage networks read the action, so ``Q(s, z)`` at a centre needs a pass with the
+action set to that centre, ``n_intervals ** action_dim`` passes per state for the whole grid.
 """
 
 from __future__ import annotations
@@ -281,6 +286,27 @@ class LegendreAdvantageNetwork(nn.Module):
             return value + (coefficients * self.centred_basis(actions)).flatten(1).sum(dim=1, keepdim=True)
         selected = (coefficients * legendre_basis(actions, self.basis_degree)).sum(dim=-1)
         return value + _centre(selected, coefficients @ self.basis_at_centres, aggregation)
+
+    def greedy_intervals(self, features: th.Tensor, aggregation: Aggregation) -> tuple[th.Tensor, th.Tensor]:
+        """
+        The best grid point of the interval centres and its Q-value, from one pass of the state heads.
+
+        ADC paper, Eq. 13-14 (Eq. 11 with ``max``) at every interval centre: ``Q(s, z) = V(s) + sum_d (A(s, z_d) -
+        b_d(s))`` with ``b_d`` the mean (or max) of ``A(s, .)`` over the centres of dimension ``d``. Every term
+        depends on one action dimension only, so the per-dimension argmax ``z*_d = argmax_z A(s, z_d)`` is the
+        argmax over the whole grid of ``n_intervals ** action_dim`` centres, and
+        ``Q(s, z*) = V(s) + sum_d (max_z A(s, z_d) - b_d(s))``.
+
+        :param features: ``(batch, features_dim)``
+        :param aggregation: ``"mean"`` or ``"max"`` (then ``Q(s, z*) = V(s)``)
+        :return: the interval index of ``z*`` in each dimension ``(batch, action_dim)`` (int64) and ``Q(s, z*)``
+            ``(batch, 1)``
+        """
+        value, coefficients = self._heads(features)
+        at_centres = coefficients @ self.basis_at_centres
+        best, index = at_centres.max(dim=-1)
+        baseline = at_centres.mean(dim=-1) if aggregation == "mean" else best
+        return index, value + (best - baseline).sum(dim=1, keepdim=True)
 
 
 class ActionAdvantageNetwork(nn.Module):

@@ -185,6 +185,10 @@ CriticDesign = Literal["paper", "state_value", "legendre", "action_network"]
 CRITIC_DESIGNS: tuple[str, ...] = get_args(CriticDesign)
 #: The designs whose advantage has one output per interval (the others evaluate it at the action itself).
 INTERVAL_OUTPUT_DESIGNS = ("paper", "state_value")
+#: The designs whose ``Q`` at every interval centre comes from one pass (see
+#: :meth:`DuelingIntervalCritic.greedy_action`): the streams read the state only and ``Q`` is additive across action
+#: dimensions. The others' advantage networks read the action (``n_intervals ** action_dim`` passes per state).
+GREEDY_CRITIC_DESIGNS: tuple[str, ...] = ("legendre",)
 #: The critic design of ``ADC("MlpPolicy", env)`` (chosen by the critic study: docs/results).
 DEFAULT_CRITIC_DESIGN: CriticDesign = "legendre"
 #: Degree of the ``"legendre"`` advantage polynomial unless ``basis_degree`` says otherwise.
@@ -374,6 +378,32 @@ class DuelingIntervalCritic(BaseModel):
         value, advantages = self.q_networks[0](features, actions)
         return value, advantages, self.partition.index(actions)
 
+    @th.no_grad()
+    def greedy_action(self, obs: PyTorchObs) -> tuple[th.Tensor, th.Tensor]:
+        """
+        The grid point of interval centres with the highest Q-value of the first critic network, and that value:
+        ``z* = argmax_z Q_1(s, z)`` over the ``n_intervals ** action_dim`` points whose every component is an
+        interval centre, and ``Q_1(s, z*)``.
+
+        ADC paper, Eq. 13-14 (Eq. 11 with ``aggregation="max"``) evaluated at every interval centre. The
+        ``"legendre"`` critic computes the advantage of every centre in one pass of its state heads, and its ``Q`` is
+        a sum of one term per action dimension, so the per-dimension argmax is the argmax over the whole grid (see
+        :meth:`~sb3_adc.adc.designs.LegendreAdvantageNetwork.greedy_intervals`). Evaluated without gradient.
+
+        :param obs: Observations
+        :return: ``z*`` ``(batch, action_dim)``, scaled actions in ``[-1, 1]``, and ``Q_1(s, z*)`` ``(batch, 1)``
+        :raises ValueError: for a critic design not in :data:`GREEDY_CRITIC_DESIGNS`
+        """
+        q_net = self.q_networks[0]
+        if not isinstance(q_net, LegendreAdvantageNetwork):
+            raise ValueError(
+                f"`greedy_action` needs critic_design in {GREEDY_CRITIC_DESIGNS}, got {self.critic_design!r}: its "
+                "advantage network reads the action, so one pass does not give the Q-value of every interval centre."
+            )
+        features = self.extract_features(obs, self.features_extractor)
+        index, value = q_net.greedy_intervals(features, self.aggregation)
+        return self.partition.centres[index], value
+
 
 def _make_network(
     critic_design: CriticDesign,
@@ -443,8 +473,8 @@ class ADCPolicy(ActorAverageTD3Policy):
     :param n_critics: Number of dueling critic networks (1 in the paper)
     :param share_features_extractor: Whether to share or not the features extractor between the actor and
         the critic (this saves computation time)
-    :param n_intervals: Number of uniform intervals per action dimension (for ``"legendre"``, only the centres of
-        its nearly-zero baseline)
+    :param n_intervals: Number of uniform intervals per action dimension (for ``"legendre"``, the centres of its
+        nearly-zero baseline, and the grid that ADC's ``target_greedy_mix`` and ``actor_greedy_weight`` search)
     :param value_net_arch: Hidden layer sizes of the value stream
     :param advantage_net_arch: Hidden layer sizes of the advantage stream
     :param aggregation: ``"mean"`` (Eq. 12-14) or ``"max"`` (Eq. 11)
