@@ -48,7 +48,10 @@ class HighwayObstacleEnv(AbstractEnv):
       after ``reset``.
     - **Rendering**: ``rgb_array`` is drawn off-screen by pygame: no display is needed, and it also works with
       ``SDL_VIDEODRIVER=dummy`` (with which highway-env alone draws blank frames).
-    - **Info**: ``{"collision": bool, "off_road": bool, "speed": float, "crashed": bool, "action": ...}``.
+    - **Info**: ``{"collision": bool, "off_road": bool, "is_success": bool, "speed": float, "crashed": bool,
+      "action": ...}``: ``is_success`` is ``not (collision or off_road)``, so at the episode's last step it tells
+      whether the car drove until truncation (what SB3's ``EvalCallback`` and ``--best-model-metric success``
+      read).
 
     Configure it as any highway-env environment, with ``config=`` at ``gym.make`` or ``env.unwrapped.configure``
     followed by ``reset``; the keys and defaults are in :meth:`default_config`.
@@ -202,4 +205,5 @@ class HighwayObstacleEnv(AbstractEnv):
         info: dict[str, Any] = super()._info(obs, None if action is None else np.array(action, copy=True))
         info["collision"] = bool(self.vehicle.crashed)
         info["off_road"] = self._off_road()
+        info["is_success"] = not (info["collision"] or info["off_road"])
         return info

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -61,6 +62,7 @@ def test_hitting_an_obstacle_terminates_with_minus_one():
     assert terminated
     assert not truncated
     assert info["collision"]
+    assert not info["is_success"]
     assert unwrapped.vehicle.crashed
     assert rewards[-1] == -1.0
     assert set(rewards[:-1]) == {0.001}
@@ -74,6 +76,7 @@ def test_leaving_the_road_terminates_with_minus_one():
     assert terminated
     assert info["off_road"]
     assert not info["collision"]
+    assert not info["is_success"]
     assert rewards[-1] == -1.0
     y_right, y_left = env.unwrapped.road_edges
     y = env.unwrapped.vehicle.position[1]
@@ -84,9 +87,10 @@ def test_leaving_the_road_terminates_with_minus_one():
 def test_episodes_are_truncated_after_duration():
     env = make({**NO_OBSTACLES, "duration": 4.0, "policy_frequency": 5})
     env.reset(seed=0)
-    rewards, terminated, truncated, _ = run(env, STRAIGHT)
+    rewards, terminated, truncated, info = run(env, STRAIGHT)
     assert truncated
     assert not terminated
+    assert info["is_success"]
     assert len(rewards) == 20
     assert sum(rewards) == pytest.approx(0.02)
     env.close()
@@ -196,3 +200,30 @@ def test_headless_rgb_array_rendering(monkeypatch, sdl_video_driver):
 def test_invalid_configurations_are_named(config, key):
     with pytest.raises(ValueError, match=f"config\\['{key}'\\]"):
         HighwayObstacleEnv(config=config)
+
+
+
+def test_the_best_model_can_be_picked_by_success(tmp_path):
+    """``--best-model-metric success`` works on the highway task: its evaluations record a success rate."""
+    import pandas as pd
+
+    from sb3_adc.experiment import TrainSettings, train
+    from sb3_adc.experiment.layout import RunLayout
+    from sb3_adc.experiment.results import evaluation_rows
+
+    settings = TrainSettings(
+        algo="ddpg",
+        env_id="sb3_adc/HighwayObstacle-v0",
+        overrides={"learning_starts": 50, "batch_size": 8, "policy_kwargs": "dict(net_arch=[8])"},
+        env_kwargs={"config": {**NO_OBSTACLES, "duration": 4.0}},
+        n_timesteps=60,
+        eval_freq=30,
+        eval_episodes=1,
+        final_eval_episodes=1,
+        log_folder=str(tmp_path),
+        best_model_metric="success",
+    )
+    result = train(settings)
+    rows = pd.DataFrame(evaluation_rows(RunLayout(result.run_dir, settings.env_id), "ddpg", 0))
+    assert rows["success_rate"].notna().all()
+    assert (Path(result.run_dir) / "best_model.zip").is_file()
