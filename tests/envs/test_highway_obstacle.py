@@ -202,7 +202,6 @@ def test_invalid_configurations_are_named(config, key):
         HighwayObstacleEnv(config=config)
 
 
-
 def test_the_best_model_can_be_picked_by_success(tmp_path):
     """``--best-model-metric success`` works on the highway task: its evaluations record a success rate."""
     import pandas as pd
