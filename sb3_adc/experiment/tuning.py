@@ -38,8 +38,10 @@ import csv
 import math
 import multiprocessing
 import os
+import shutil
 import socket
 import time
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from multiprocessing.sharedctypes import Synchronized
@@ -50,7 +52,7 @@ import numpy as np
 import optuna
 import torch as th
 import yaml
-from optuna.storages.journal import JournalFileBackend
+from optuna.storages.journal import JournalFileBackend, JournalFileSymlinkLock
 from optuna.trial import FrozenTrial, TrialState
 from stable_baselines3.common.callbacks import EvalCallback
 
@@ -263,6 +265,8 @@ def tune(settings: TuneSettings) -> TuneResult:
     if settings.objective == "success":
         check_success_reported(settings, config.wrap_env(gym.make(settings.env_id, **evaluation_kwargs)))
     os.makedirs(settings.study_dir, exist_ok=True)
+    if "://" not in settings.storage_url():
+        repair_journal(settings.storage_url())
     study = _open_study(settings, worker=0)
     _fail_dead_trials(study)
     _continue_interrupted(study)
@@ -579,6 +583,60 @@ def _base_entry(settings: TuneSettings) -> dict[str, Any]:
     path = find_hyperparams_file(settings.conf_file) if settings.conf_file else packaged_hyperparams_file(settings.algo)
     entry, _ = select_entry(read_hyperparams_file(path), settings.env_id, path)
     return entry
+
+
+def repair_journal(path: str) -> str | None:
+    """
+    Cut a torn last line off an Optuna journal file, so that a study whose last write was cut short (its
+    process killed mid-write) can be continued.
+
+    Optuna skips a last line without its newline when it reads the journal, but appends its next record to it,
+    which makes a line that no later read can decode. Here, under the journal's own lock (so that no other
+    process is writing), a file that does not end with a newline is copied to ``{path}.torn-{n}`` (the first
+    free ``n``) and truncated after its last newline; a warning names both files.
+
+    :param path: The journal file (one that does not exist is left alone)
+    :return: The copy of the torn file, or ``None`` where nothing was torn
+    """
+    if not os.path.isfile(path) or os.path.getsize(path) == 0:
+        return None
+    lock = JournalFileSymlinkLock(path)
+    lock.acquire()
+    try:
+        with open(path, "rb+") as stream:
+            size = stream.seek(0, os.SEEK_END)
+            if size == 0:
+                return None
+            stream.seek(size - 1)
+            if stream.read(1) == b"\n":
+                return None
+            # Find the end of the last complete line, reading backwards in blocks.
+            end = size
+            keep = 0
+            while end > 0:
+                start = max(0, end - 65536)
+                stream.seek(start)
+                newline = stream.read(end - start).rfind(b"\n")
+                if newline >= 0:
+                    keep = start + newline + 1
+                    break
+                end = start
+            n = 0
+            while os.path.exists(f"{path}.torn-{n}"):
+                n += 1
+            copy = f"{path}.torn-{n}"
+            shutil.copyfile(path, copy)
+            stream.truncate(keep)
+            stream.flush()
+            os.fsync(stream.fileno())
+    finally:
+        lock.release()
+    warnings.warn(
+        f"{path}: its last line was cut short ({size - keep} bytes without a newline, a write interrupted by a "
+        f"crash); it is removed so that the study can continue, and the file as it was is kept in {copy}",
+        stacklevel=2,
+    )
+    return copy
 
 
 def _open_study(settings: TuneSettings, worker: int) -> optuna.Study:
