@@ -44,7 +44,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     :param argv: The command-line arguments
     :return: The exit status: 0 on success, 1 if benchmark runs failed or training diverged (NaN or inf), 2 for
-        invalid input or a missing extra, 130 when interrupted
+        invalid input or a missing extra, 130 when interrupted (Ctrl-C, or SIGTERM, handled the same way)
     """
     try:
         parser = build_parser()
@@ -59,6 +59,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from sb3_adc.experiment.benchmark import RunSettingsMismatch
     from sb3_adc.experiment.divergence import NonFiniteValue, TrainingDiverged
     from sb3_adc.experiment.settings import SettingsError
+    from sb3_adc.experiment.training import sigterm_as_sigint
 
     user_errors = (
         HyperparamsError,  # a hyperparameter file, -params or a run's config.yml / args.yml
@@ -72,7 +73,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     try:
-        return int(args.handler(args))
+        # A scheduler's SIGTERM (Slurm, Kubernetes) stops a run as Ctrl-C does: with a checkpoint, status 130.
+        with sigterm_as_sigint():
+            return int(args.handler(args))
     except user_errors as error:
         print(f"sb3-adc {args.command}: error: {error}", file=sys.stderr)
         return 2

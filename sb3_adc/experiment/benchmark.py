@@ -21,11 +21,14 @@ import glob
 import multiprocessing
 import os
 import re
+import signal
 import sys
+import threading
 import traceback
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
+from types import FrameType
 from typing import Any, NoReturn
 
 import yaml
@@ -299,6 +302,60 @@ def _init_worker() -> None:
     th.set_num_threads(1)
 
 
+#: In a worker of the local pool: whether a run is in progress, and whether the worker was interrupted (Ctrl-C
+#: or SIGTERM), after which it starts no run.
+_IN_RUN = threading.Event()
+_WORKER_INTERRUPTED = threading.Event()
+
+
+def _init_local_worker() -> None:
+    """
+    A worker of the local pool: as :func:`_init_worker`, and Ctrl-C and SIGTERM handled by :func:`_interrupt_worker`
+    (a scheduler such as Slurm signals every process of a job; the parent passes on a SIGTERM that it alone
+    received, see :func:`_stop_pool`). Not for Ray's workers, which Ray itself stops with SIGTERM.
+    """
+    _init_worker()
+    signal.signal(signal.SIGINT, _interrupt_worker)
+    signal.signal(signal.SIGTERM, _interrupt_worker)
+
+
+def _interrupt_worker(signum: int, frame: FrameType | None) -> None:
+    """
+    Ctrl-C or SIGTERM in a worker of the local pool: the run in progress stops as with Ctrl-C (in training, the
+    run's own SIGINT handler saves a checkpoint after the step in progress), and the worker starts no other run.
+    An idle worker only takes note: it leaves when the pool shuts down (a worker that died would break the pool,
+    which then kills the others, however far their checkpoints are). A second SIGTERM is ignored (a second Ctrl-C
+    stops the run at once, as it does outside a pool).
+    """
+    if signum == signal.SIGTERM and _WORKER_INTERRUPTED.is_set():
+        return  # a SIGTERM passed on by the parent after the scheduler's own (Slurm signals every process)
+    _WORKER_INTERRUPTED.set()
+    if not _IN_RUN.is_set():
+        return
+    handler = signal.getsignal(signal.SIGINT)
+    if callable(handler) and handler is not _interrupt_worker:
+        handler(signal.SIGINT, frame)
+    else:
+        raise KeyboardInterrupt
+
+
+def _run_local_job(spec: RunSpec, settings: BenchmarkSettings) -> RunOutcome:
+    """
+    :func:`run_one` in a worker of the local pool, unless the worker was interrupted. An interruption comes back
+    to the parent as a plain ``KeyboardInterrupt`` (one that pickles).
+    """
+    if _WORKER_INTERRUPTED.is_set():
+        raise KeyboardInterrupt(f"{spec}: not started, the worker was interrupted")
+    _IN_RUN.set()
+    try:
+        return run_one(spec, settings)
+    except KeyboardInterrupt as error:
+        _WORKER_INTERRUPTED.set()
+        raise KeyboardInterrupt(str(error)) from None
+    finally:
+        _IN_RUN.clear()
+
+
 #: A run and the settings of its grid: the unit the local and Ray backends schedule.
 Job = tuple[RunSpec, BenchmarkSettings]
 
@@ -315,10 +372,38 @@ def run_local(jobs: Sequence[Job], workers: int) -> Iterator[RunOutcome]:
             yield run_one(spec, settings)
         return
     context = multiprocessing.get_context("spawn")
-    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context, initializer=_init_worker) as pool:
-        futures = [pool.submit(run_one, spec, settings) for spec, settings in jobs]
-        for future in concurrent.futures.as_completed(futures):
-            yield future.result()
+    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context, initializer=_init_local_worker) as pool:
+        futures = [pool.submit(_run_local_job, spec, settings) for spec, settings in jobs]
+        try:
+            for future in concurrent.futures.as_completed(futures):
+                yield future.result()
+        except KeyboardInterrupt:
+            _stop_pool(pool, futures)
+            raise
+
+
+def _stop_pool(pool: concurrent.futures.ProcessPoolExecutor, futures: Sequence[concurrent.futures.Future[Any]]) -> None:
+    """
+    Stop the pool after Ctrl-C or SIGTERM: no run starts, the runs in progress save a checkpoint and the workers
+    exit (none is left behind the command).
+
+    Ctrl-C reaches every process of the terminal's group, and so does a Slurm SIGTERM; a SIGTERM to this process
+    alone (Kubernetes stops a container that way, or ``kill PID``) is passed on to the workers. A worker, once
+    interrupted, starts no run (see :func:`_interrupt_worker`), so the runs queued before the interrupt end at once.
+
+    :param pool: The pool
+    :param futures: The runs submitted to it
+    """
+    from sb3_adc.experiment.training import sigterm_received
+
+    started = [future for future in futures if not future.cancel()]
+    if sigterm_received():
+        # The pool's processes (a private attribute: the executor has no public way to signal its workers).
+        for process in list((getattr(pool, "_processes", None) or {}).values()):
+            if process.is_alive():
+                process.terminate()  # SIGTERM, handled as Ctrl-C
+    concurrent.futures.wait(started)
+    pool.shutdown(wait=True, cancel_futures=True)
 
 
 def run_ray(jobs: Sequence[Job], address: str | None = None) -> Iterator[RunOutcome]:

@@ -3,16 +3,21 @@ Training runs in the RL-Zoo log layout, with periodic evaluation, checkpoints, r
 
 :func:`train` starts a run, :func:`resume` continues one from its last checkpoint (model, replay buffer,
 ``VecNormalize`` statistics, timestep count and exploration-noise state, evaluations so far). A run
-interrupted with Ctrl-C saves a checkpoint first. See :mod:`sb3_adc.experiment.layout` for the files. Both check
-what they are asked before a folder is written, then hand the run to the engine,
+interrupted with Ctrl-C (or SIGTERM, in :func:`sigterm_as_sigint`, as ``sb3-adc`` runs) saves a checkpoint first.
+See :mod:`sb3_adc.experiment.layout` for the files. Both check what they are asked before a folder is written, then
+hand the run to the engine,
 :class:`~sb3_adc.experiment.manager.RunManager` (the RL Zoo's ``ExperimentManager``).
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+import signal
+import threading
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
+from types import FrameType
 
 import gymnasium as gym
 import yaml
@@ -32,6 +37,49 @@ from sb3_adc.experiment.evaluation import FinalEvaluation, success_unreported
 from sb3_adc.experiment.layout import Checkpoint, RunLayout, latest_run_dir, new_run_dir
 from sb3_adc.experiment.manager import RunManager
 from sb3_adc.experiment.settings import BEST_MODEL_METRICS, SettingsError, TrainSettings
+
+#: Whether this process has received a SIGTERM handled as SIGINT (see :func:`sigterm_received`).
+_SIGTERM_RECEIVED = threading.Event()
+
+
+def sigterm_received() -> bool:
+    """
+    Whether this process has received a SIGTERM in the current :func:`sigterm_as_sigint` block: a scheduler may
+    signal only the main process (Kubernetes does), which then has to pass the signal on to its workers.
+    """
+    return _SIGTERM_RECEIVED.is_set()
+
+
+def _sigterm_as_sigint(signum: int, frame: FrameType | None) -> None:
+    """
+    A SIGTERM handler that does what SIGINT (Ctrl-C) would do now: call the SIGINT handler in place (during
+    training, the run's own, which stops after the step in progress with a checkpoint), or raise
+    ``KeyboardInterrupt`` where SIGINT has Python's default handling; nothing where SIGINT is ignored.
+    """
+    _SIGTERM_RECEIVED.set()
+    handler = signal.getsignal(signal.SIGINT)
+    if callable(handler):
+        handler(signal.SIGINT, frame)
+    elif handler != signal.SIG_IGN:
+        raise KeyboardInterrupt
+
+
+@contextmanager
+def sigterm_as_sigint() -> Iterator[None]:
+    """
+    While the block runs, SIGTERM is handled as SIGINT (Ctrl-C): a scheduler that stops a job with SIGTERM
+    (Slurm, Kubernetes, ``kill``) gets a checkpoint and an orderly exit, as Ctrl-C does. The previous SIGTERM
+    handler is restored after the block. Outside the main thread (where handlers cannot be set) nothing changes.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _SIGTERM_RECEIVED.clear()
+    previous = signal.signal(signal.SIGTERM, _sigterm_as_sigint)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 @dataclass
