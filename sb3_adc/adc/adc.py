@@ -26,6 +26,7 @@ from sb3_adc.adc.policies import (
 )
 from sb3_adc.common.critic_learning_rate import TD3WithCriticLearningRate
 from sb3_adc.common.model_files import CheckedModelFiles, model_file_error
+from sb3_adc.common.noise import check_action_noise
 from sb3_adc.common.schedules import ScaledSchedule
 from sb3_adc.common.spaces import ActionSpaceError, check_action_space
 
@@ -191,6 +192,7 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
             # Check the action space before SB3 does, for an error that says what ADC accepts.
             env = maybe_make_env(env, verbose)
             check_action_space(env.action_space)
+            check_action_noise(action_noise, env.action_space)
         super().__init__(
             policy=policy,
             env=env,

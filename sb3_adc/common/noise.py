@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+from gymnasium import spaces
 from numpy.typing import ArrayLike, DTypeLike
-from stable_baselines3.common.noise import ActionNoise
+from stable_baselines3.common.noise import ActionNoise, VectorizedActionNoise
 
 
 class EpsilonGaussianNoise(ActionNoise):
@@ -67,6 +68,11 @@ class EpsilonGaussianNoise(ActionNoise):
         self.n_calls = 0
 
     @property
+    def shape(self) -> tuple[int, ...]:
+        """Shape of the noise a call returns (that of ``mean`` and ``sigma``)."""
+        return self._zeros.shape
+
+    @property
     def epsilon(self) -> float:
         """Probability that the next call returns Gaussian noise."""
         if self.n_calls >= self.decay_steps:
@@ -79,7 +85,7 @@ class EpsilonGaussianNoise(ActionNoise):
         self.n_calls += 1
         # NumPy's global generator, as SB3's noises: seeded by the model's `seed`.
         if np.random.random() < epsilon:  # noqa: NPY002
-            return np.random.normal(self._mu, self._sigma).astype(self._dtype)  # noqa: NPY002
+            return np.asarray(np.random.normal(self._mu, self._sigma), dtype=self._dtype)  # noqa: NPY002
         return self._zeros.copy()
 
     def reset(self) -> None:
@@ -93,4 +99,47 @@ class EpsilonGaussianNoise(ActionNoise):
         return (
             f"EpsilonGaussianNoise(mean={self._mu}, sigma={self._sigma}, decay_steps={self.decay_steps}, "
             f"initial_epsilon={self.initial_epsilon}, final_epsilon={self.final_epsilon}, n_calls={self.n_calls})"
+        )
+
+
+def _noise_shape(action_noise: ActionNoise) -> tuple[int, ...] | None:
+    """The shape of the noise ``action_noise`` draws, where it says (``mean``/``sigma``), else ``None``."""
+    if isinstance(action_noise, EpsilonGaussianNoise):
+        return action_noise.shape
+    mu, sigma = getattr(action_noise, "_mu", None), getattr(action_noise, "_sigma", None)  # SB3's Gaussian noises
+    if isinstance(mu, np.ndarray) and isinstance(sigma, np.ndarray):
+        try:
+            return tuple(np.broadcast_shapes(mu.shape, sigma.shape))
+        except ValueError:
+            return None
+    return None
+
+
+def check_action_noise(action_noise: ActionNoise | None, action_space: spaces.Space) -> None:
+    """
+    Raise an error unless ``action_noise`` draws one value per dimension of ``action_space``.
+
+    SB3 adds the noise to the action with NumPy broadcasting: noise of one value (``mean=np.zeros(1)``) on a
+    3-dimensional action would silently add the same draw to every dimension, and noise of another length fails
+    only at the first step. Noises that do not expose ``mean`` and ``sigma`` are not checked.
+
+    :param action_noise: The algorithm's ``action_noise`` (``None``: no noise), possibly a
+        :class:`~stable_baselines3.common.noise.VectorizedActionNoise`
+    :param action_space: The environment's action space
+    :raises ValueError: naming ``mean``/``sigma``, their shape and the action space's dimension
+    """
+    if action_noise is None or not isinstance(action_space, spaces.Box):
+        return
+    noises = action_noise.noises if isinstance(action_noise, VectorizedActionNoise) else [action_noise]
+    action_shape = tuple(action_space.shape)
+    n_actions = int(np.prod(action_shape))
+    for noise in noises:
+        shape = _noise_shape(noise)
+        if shape is None or shape == action_shape or (n_actions == 1 and int(np.prod(shape)) == 1):
+            continue
+        raise ValueError(
+            f"`action_noise` ({type(noise).__name__}): `mean` and `sigma` have shape {shape}, but the action space "
+            f"has shape {action_shape} ({n_actions} action dimensions); give one value per dimension, e.g. "
+            f"mean=np.zeros({n_actions}), sigma=np.full({n_actions}, 0.1) (a single value would add the same noise "
+            "to every dimension)."
         )

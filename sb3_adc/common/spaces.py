@@ -48,8 +48,9 @@ def check_action_space(action_space: spaces.Space) -> None:
     if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
         raise ActionBoundsError(
             f"`action_space` must have finite bounds (the critic partitions [low, high] into intervals), "
-            f"got low={low.tolist()}, high={high.tolist()}. Rescale the actions to a finite range, "
-            "e.g. with gymnasium.wrappers.RescaleAction or ClipAction."
+            f"got low={low.tolist()}, high={high.tolist()}. Give the space the true, finite limits of the actuator, "
+            "e.g. with a gymnasium.ActionWrapper whose `action_space` is a Box of those limits (gymnasium's ClipAction "
+            "keeps infinite bounds infinite and RescaleAction refuses them, so neither helps here)."
         )
     if np.any(high <= low):
         raise ActionBoundsError(
