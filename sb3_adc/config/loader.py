@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import difflib
 import os
-from collections.abc import Hashable, Mapping, Sequence
+from collections.abc import Hashable, Iterable, Mapping, Sequence
 from importlib import resources
 from typing import Any
 
@@ -358,6 +358,18 @@ def apply_overrides(entry: Mapping[str, Any], overrides: Mapping[str, Any]) -> d
     return merged
 
 
+def _did_you_mean(name: str, accepted: Iterable[str]) -> str:
+    """
+    A "did you mean" phrase (to end an error message) naming the accepted names closest to a misspelt ``name``;
+    empty where none is close.
+
+    :param name: The unknown name
+    :param accepted: The accepted names
+    """
+    close = difflib.get_close_matches(name, sorted(accepted), n=3, cutoff=0.6)
+    return f"; did you mean {' or '.join(f'`{match}`' for match in close)}?" if close else ""
+
+
 def resolve_entry(
     algo: str, env_id: str, entry: Mapping[str, Any], source: str, n_timesteps: int | None = None
 ) -> ExperimentConfig:
@@ -379,7 +391,8 @@ def resolve_entry(
         raise HyperparamsError(
             source,
             unknown[0],
-            f"unknown key for {algo} ({algorithm_class.__name__}); accepted keys: {', '.join(sorted(keys))}",
+            f"unknown key for {algo} ({algorithm_class.__name__}); accepted keys: {', '.join(sorted(keys))}"
+            f"{_did_you_mean(unknown[0], keys)}",
         )
     values = {key: keys[key](value, source, key) for key, value in entry.items()}
     if n_timesteps is not None:
@@ -519,7 +532,10 @@ def _resolve_normalize(value: bool | dict[str, Any] | str, gamma: float | None, 
     unknown = sorted(set(kwargs) - NORMALIZE_KEYS)
     if unknown:
         raise HyperparamsError(
-            source, f"normalize.{unknown[0]}", f"unknown VecNormalize keyword; accepted: {', '.join(sorted(NORMALIZE_KEYS))}"
+            source,
+            f"normalize.{unknown[0]}",
+            f"unknown VecNormalize keyword; accepted: {', '.join(sorted(NORMALIZE_KEYS))}"
+            f"{_did_you_mean(str(unknown[0]), NORMALIZE_KEYS)}",
         )
     if gamma is not None:
         # As the RL Zoo: the reward normalization discounts with the algorithm's gamma.
