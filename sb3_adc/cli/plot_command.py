@@ -6,13 +6,32 @@ the probability of improvement from benchmark CSVs.
 from __future__ import annotations
 
 import argparse
+import glob
 import os
+import sys
 
 import pandas as pd
 
 from sb3_adc.cli.common import CommandError
-from sb3_adc.experiment.benchmark import EPISODES_CSV, FINAL_CSV
-from sb3_adc.experiment.results import EVALUATION_COLUMNS, read_table
+from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CSV
+from sb3_adc.experiment.layout import RunLayout
+from sb3_adc.experiment.results import (
+    EPISODE_COLUMNS,
+    EVALUATION_COLUMNS,
+    FINAL_COLUMNS,
+    Row,
+    episode_rows,
+    evaluation_rows,
+    final_row,
+    read_table,
+)
+from sb3_adc.experiment.settings import TrainSettings
+
+#: What ``--csv`` accepts, for error messages.
+CSV_ACCEPTS = (
+    "--csv accepts the evaluations.csv written by sb3-adc benchmark, the folder holding it, a run folder of "
+    "sb3-adc train (e.g. logs/adc/Pendulum-v1_1, or its evaluations.npz) or a folder of such runs (e.g. logs)"
+)
 
 DESCRIPTION = """\
 Plot the results of `sb3-adc benchmark` with rliable statistics (95% stratified-bootstrap CIs):
@@ -26,10 +45,14 @@ Plot the results of `sb3-adc benchmark` with rliable statistics (95% stratified-
   final_performance.csv/.md, curves.csv, episode_variance.csv, performance_profiles.csv,
   probability_of_improvement.csv   the numbers behind the figures
 
-final.csv and episodes.csv are read from the folder of --csv when present.
+final.csv and episodes.csv are read from the folder of --csv when present. --csv may also be the folder of a
+benchmark, a run folder of `sb3-adc train` or a folder of runs (their evaluations.npz, monitor files and final
+evaluations are read as the benchmark tables are). Confidence intervals and P(X > Y) need at least 2 runs of
+each algorithm on each environment.
 
-example:
+examples:
   sb3-adc plot --csv benchmark/evaluations.csv -o benchmark/plots
+  sb3-adc plot --csv logs/adc/Pendulum-v1_1
 """
 
 
@@ -45,7 +68,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         description=DESCRIPTION,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--csv", required=True, help="evaluation curves written by sb3-adc benchmark (evaluations.csv)")
+    parser.add_argument(
+        "--csv",
+        required=True,
+        help="evaluation curves written by sb3-adc benchmark (evaluations.csv, or its folder), or a run folder of "
+        "sb3-adc train, or a folder of runs",
+    )
     parser.add_argument("--final-csv", help="final evaluations (default: final.csv next to --csv, else the last evaluations)")
     parser.add_argument("--episodes-csv", help="training episodes (default: episodes.csv next to --csv, if present)")
     parser.add_argument("-o", "--output-dir", help="where to write (default: a plots folder next to --csv)")
@@ -57,17 +85,124 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run)
 
 
-def _read(path: str | None, default: str, required_columns: tuple[str, ...]) -> pd.DataFrame | None:
+def _read(path: str | None, default: str, required_columns: tuple[str, ...], option: str = "--csv") -> pd.DataFrame | None:
     path = path or (default if os.path.isfile(default) else None)
     if path is None:
         return None
     if not os.path.isfile(path):
-        raise CommandError(f"{path} does not exist")
-    table = read_table(path)
+        raise CommandError(f"{option}: {path} does not exist" + (f"; {CSV_ACCEPTS}" if option == "--csv" else ""))
+    try:
+        table = read_table(path)
+    except (UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as error:
+        accepts = CSV_ACCEPTS if option == "--csv" else f"{option} accepts a CSV table written by sb3-adc benchmark"
+        raise CommandError(f"{option}: {path} is not a CSV table ({type(error).__name__}); {accepts}") from None
     missing = [column for column in required_columns if column not in table.columns]
     if missing:
-        raise CommandError(f"{path} lacks the columns {', '.join(missing)} (is it a table written by sb3-adc benchmark?)")
+        raise CommandError(
+            f"{option}: {path} lacks the columns {', '.join(missing)} (is it a table written by sb3-adc benchmark?)"
+        )
     return table
+
+
+def _is_run(folder: str) -> bool:
+    return bool(glob.glob(os.path.join(glob.escape(folder), "*", "args.yml")))
+
+
+def _run_folders(folder: str) -> list[str]:
+    """The run folders of ``sb3-adc train`` or ``benchmark`` in ``folder``: itself, or up to two levels below."""
+    if _is_run(folder):
+        return [folder]
+    candidates = sorted(glob.glob(os.path.join(glob.escape(folder), "*", ""))) + sorted(
+        glob.glob(os.path.join(glob.escape(folder), "*", "*", ""))
+    )
+    return [os.path.normpath(candidate) for candidate in candidates if _is_run(candidate)]
+
+
+def _read_runs(runs: list[str]) -> tuple[pd.DataFrame, pd.DataFrame | None, pd.DataFrame | None]:
+    """
+    The evaluation, final and episode tables of run folders, read as :mod:`sb3_adc.experiment.benchmark` writes
+    them. Runs of the same algorithm, environment and seed (trained twice) are told apart by numbering the runs of
+    that pair instead (a note says so).
+
+    :param runs: The run folders
+    :return: The evaluations, and the final evaluations and episodes (``None`` where no run has any)
+    """
+    evaluations: list[Row] = []
+    finals: list[Row] = []
+    episodes: list[Row] = []
+    layouts: dict[tuple[str, str], list[tuple[RunLayout, int]]] = {}
+    for run_dir in runs:
+        try:
+            settings = TrainSettings.of_run(run_dir)
+        except (FileNotFoundError, ValueError, TypeError) as error:
+            print(f"sb3-adc plot: warning: {run_dir} is left out: {error}", file=sys.stderr)
+            continue
+        layouts.setdefault((settings.algo, settings.env_id), []).append((RunLayout(run_dir, settings.env_id), settings.seed))
+    for (algo, env_id), group in layouts.items():
+        seeds = [seed for _, seed in group]
+        if len(set(seeds)) < len(seeds):
+            print(f"note: several runs of {algo} on {env_id} have the same seed; they are numbered 0..{len(seeds) - 1}")
+            seeds = list(range(len(seeds)))
+        for (layout, _), seed in zip(group, seeds, strict=True):
+            if not os.path.isfile(layout.evaluations):
+                print(f"sb3-adc plot: warning: {layout.run_dir} has no evaluations yet; left out", file=sys.stderr)
+                continue
+            evaluations += evaluation_rows(layout, algo, seed)
+            episodes += episode_rows(layout, algo, seed)
+            final = final_row(layout, algo, seed)
+            if final is not None:
+                finals.append(final)
+    if not evaluations:
+        raise CommandError(f"--csv: no evaluations in {', '.join(runs)}; {CSV_ACCEPTS}")
+    return (
+        pd.DataFrame(evaluations, columns=list(EVALUATION_COLUMNS)),
+        pd.DataFrame(finals, columns=list(FINAL_COLUMNS)) if finals else None,
+        pd.DataFrame(episodes, columns=list(EPISODE_COLUMNS)) if episodes else None,
+    )
+
+
+def _read_inputs(args: argparse.Namespace) -> tuple[pd.DataFrame, pd.DataFrame | None, pd.DataFrame | None, str]:
+    """
+    The evaluations, final evaluations and episodes that ``--csv`` (and ``--final-csv``, ``--episodes-csv``) name,
+    and the folder the default output folder goes in.
+    """
+    path = args.csv
+    if os.path.basename(path) == "evaluations.npz" and os.path.isfile(path):
+        path = os.path.dirname(os.path.abspath(path))  # a run's own evaluations: its run folder
+    if os.path.isdir(path):
+        if os.path.isfile(os.path.join(path, EVALUATIONS_CSV)):
+            path = os.path.join(path, EVALUATIONS_CSV)
+        else:
+            runs = _run_folders(path)
+            if not runs:
+                raise CommandError(f"--csv: {path} holds neither {EVALUATIONS_CSV} nor runs; {CSV_ACCEPTS}")
+            evaluations, final, episodes = _read_runs(runs)
+            if args.final_csv:
+                final = _read(args.final_csv, "", ("algo", "env", "seed", "mean_return"), "--final-csv")
+            if args.episodes_csv:
+                episodes = _read(args.episodes_csv, "", ("algo", "env", "seed", "episode", "return"), "--episodes-csv")
+            return evaluations, final, episodes, path
+    folder = os.path.dirname(os.path.abspath(path))
+    evaluations_table = _read(path, path, EVALUATION_COLUMNS[:5])
+    assert evaluations_table is not None
+    final_table = _read(args.final_csv, os.path.join(folder, FINAL_CSV), ("algo", "env", "seed", "mean_return"), "--final-csv")
+    episodes_table = _read(
+        args.episodes_csv, os.path.join(folder, EPISODES_CSV), ("algo", "env", "seed", "episode", "return"), "--episodes-csv"
+    )
+    return evaluations_table, final_table, episodes_table, folder
+
+
+def _warn_single_runs(final: pd.DataFrame) -> None:
+    """Warn where an algorithm has fewer than 2 runs on an environment: its CIs and P(X > Y) mean nothing."""
+    counts = final.groupby(["algo", "env"])["seed"].nunique()
+    single = [f"{algo} on {env}" for (algo, env), count in counts.items() if count < 2]
+    if single:
+        print(
+            f"sb3-adc plot: warning: one run only of {', '.join(single)}: confidence intervals and P(X > Y) need at "
+            "least 2 runs of each algorithm on each environment (e.g. sb3-adc benchmark --n-seeds 5); with one run "
+            "an interval is a single point and P(X > Y) compares two single runs (0 or 1).",
+            file=sys.stderr,
+        )
 
 
 def _select(table: pd.DataFrame | None, args: argparse.Namespace) -> pd.DataFrame | None:
@@ -95,11 +230,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"--reps must be >= 1, got {args.reps}")
     if args.window < 1:
         raise CommandError(f"--window must be >= 1, got {args.window}")
-    folder = os.path.dirname(os.path.abspath(args.csv))
-    evaluations = _read(args.csv, args.csv, EVALUATION_COLUMNS[:5])
-    assert evaluations is not None
-    final = _read(args.final_csv, os.path.join(folder, FINAL_CSV), ("algo", "env", "seed", "mean_return"))
-    episodes = _read(args.episodes_csv, os.path.join(folder, EPISODES_CSV), ("algo", "env", "seed", "episode", "return"))
+    evaluations, final, episodes, folder = _read_inputs(args)
     evaluations = _select(evaluations, args)
     assert evaluations is not None
     if evaluations.empty:
@@ -115,8 +246,10 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         window=args.window,
     )
+    compared = final if final is not None and not final.empty else last_evaluations(evaluations)
+    _warn_single_runs(compared)
     comparisons = plot_comparisons(
-        final if final is not None and not final.empty else last_evaluations(evaluations),
+        compared,
         output_dir,
         reps=args.reps,
         seed=args.seed,
