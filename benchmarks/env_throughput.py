@@ -11,7 +11,9 @@ rays per lidar reading (``rays_per_reading=4``), at two levels:
 
 Actions are drawn before the timed loop; the loop calls ``reset()`` whenever an episode ends (collisions are
 frequent under random steering), and those resets are part of the timing. The repeats go round all the
-measurements in turn and each measurement keeps its best repeat. The process is pinned to one core.
+measurements in turn and each measurement keeps its best repeat. Then ``reset(seed=k)`` alone is timed
+:data:`RESETS` times (``k = 0, 1, ...``: on ``-v1`` a new layout each time) and its median is reported. The
+process is pinned to one core.
 
 Usage::
 
@@ -64,20 +66,19 @@ ENVIRONMENTS: dict[str, tuple[str, dict[str, Any], int]] = {
     "sb3_adc/HighwayObstacle-v0": ("sb3_adc/HighwayObstacle-v0", {}, 5_000),
 }
 LEVELS = ("core", "gym.make")
-#: The kinematic lidar course (``-v0``) must reach this many steps per second behind gym.make's wrappers.
-LIDAR_TARGET_STEPS_PER_S = 20_000
-#: The wheeled robot on ``-v0`` must reach this many steps per second behind gym.make's wrappers.
-WHEELED_TARGET_STEPS_PER_S = 2_000
+#: Targets behind gym.make's wrappers: name -> (measurement, column, target), a least steps/s or a most reset ms.
+TARGETS: dict[str, tuple[str, str, float]] = {
+    "lidar": ("sb3_adc/LidarObstacleCourse-v0", "steps_per_s", 20_000),
+    "wheeled": ("sb3_adc/LidarObstacleCourse-v0" + WHEELED_SUFFIX, "steps_per_s", 2_000),
+    "v1": ("sb3_adc/LidarObstacleCourse-v1", "steps_per_s", 10_000),
+    "v1_reset": ("sb3_adc/LidarObstacleCourse-v1", "reset_ms", 3.0),
+}
+#: Resets timed one by one for the median reset time (a full run; 20 in a quick one).
+RESETS = 200
 
 
 def make_env(env_id: str, level: str, kwargs: dict[str, Any] | None = None) -> gym.Env[Any, Any]:
-    """
-    The environment at one measurement level.
-
-    :param env_id: Registered id
-    :param level: ``"core"`` (what the entry point returns) or ``"gym.make"`` (with gym.make's default wrappers)
-    :param kwargs: Make kwargs, over the registered ones
-    """
+    """``env_id`` at ``level``: ``"core"`` (what the entry point returns) or ``"gym.make"``, with make ``kwargs``."""
     kwargs = kwargs or {}
     if level == "gym.make":
         return gym.make(env_id, **kwargs)
@@ -90,11 +91,7 @@ def make_env(env_id: str, level: str, kwargs: dict[str, Any] | None = None) -> g
 
 
 def time_steps(env: gym.Env[Any, Any], n_steps: int, seed: int) -> tuple[float, int]:
-    """
-    Step an environment ``n_steps`` times under uniformly random actions.
-
-    :return: elapsed seconds and number of resets done inside the timed loop
-    """
+    """Step ``n_steps`` times under uniformly random actions; returns the seconds taken and the resets in the loop."""
     env.action_space.seed(seed)
     actions = [env.action_space.sample() for _ in range(n_steps)]
     env.reset(seed=seed)
@@ -107,6 +104,16 @@ def time_steps(env: gym.Env[Any, Any], n_steps: int, seed: int) -> tuple[float, 
             env.reset()
             resets += 1
     return time.perf_counter() - start, resets
+
+
+def median_reset_ms(env: gym.Env[Any, Any], n_resets: int) -> float:
+    """The median time of ``reset(seed=k)`` for ``k = 0, ..., n_resets - 1`` [ms]."""
+    times = []
+    for seed in range(n_resets):
+        start = time.perf_counter()
+        env.reset(seed=seed)
+        times.append(time.perf_counter() - start)
+    return float(np.median(times)) * 1e3
 
 
 def pin_to_one_core() -> str:
@@ -140,6 +147,7 @@ def run(scale: float, repeats: int) -> list[dict[str, Any]]:
         print(f"  repeat {repeat + 1}/{repeats} done", flush=True)
     rows: list[dict[str, Any]] = []
     for name, level, n_steps in cases:
+        reset_ms = median_reset_ms(envs[name, level], RESETS if scale == 1.0 else 20)
         envs[name, level].close()
         seconds, resets = best[name, level]
         rows.append(
@@ -153,6 +161,7 @@ def run(scale: float, repeats: int) -> list[dict[str, Any]]:
                 "seconds": seconds,
                 "steps_per_s": n_steps / seconds,
                 "us_per_step": seconds / n_steps * 1e6,
+                "reset_ms": reset_ms,
             }
         )
     pendulum = {row["level"]: row["steps_per_s"] for row in rows if row["environment"] == "Pendulum-v1"}
@@ -163,13 +172,13 @@ def run(scale: float, repeats: int) -> list[dict[str, Any]]:
 
 def print_table(rows: list[dict[str, Any]]) -> None:
     """Print the results as a table."""
-    header = f"{'environment':<55} {'level':<9} {'steps/s':>10} {'us/step':>8} {'x Pendulum':>10} {'resets':>7}"
+    header = f"{'env':<54} {'level':<8} {'steps/s':>10} {'us/step':>8} {'x Pendulum':>10} {'resets':>7} {'reset ms':>8}"
     print(header)
     print("-" * len(header))
     for row in rows:
         print(
-            f"{row['environment']:<55} {row['level']:<9} {row['steps_per_s']:>10,.0f} {row['us_per_step']:>8.1f} "
-            f"{row['ratio_to_pendulum']:>10.2f} {row['resets']:>7}"
+            f"{row['environment']:<54} {row['level']:<8} {row['steps_per_s']:>10,.0f} {row['us_per_step']:>8.1f} "
+            f"{row['ratio_to_pendulum']:>10.2f} {row['resets']:>7} {row['reset_ms']:>8.2f}"
         )
 
 
@@ -187,8 +196,8 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
         values = [next(r["steps_per_s"] for r in rows if r["environment"] == e and r["level"] == level) for e in env_ids]
         bars = ax.bar(np.arange(len(env_ids)) + offset, values, width, label=level)
         ax.bar_label(bars, labels=[f"{v:,.0f}" for v in values], fontsize=7)
-    ax.axhline(LIDAR_TARGET_STEPS_PER_S, color="tab:red", linestyle="--", linewidth=1, label="lidar course target")
-    ax.axhline(WHEELED_TARGET_STEPS_PER_S, color="tab:purple", linestyle=":", linewidth=1, label="wheeled robot target")
+    ax.axhline(TARGETS["lidar"][2], color="tab:red", linestyle="--", linewidth=1, label="lidar course target")
+    ax.axhline(TARGETS["wheeled"][2], color="tab:purple", linestyle=":", linewidth=1, label="wheeled robot target")
     ax.set_yscale("log")
     ax.set_ylabel("steps / s (one core)")
     labels = [
@@ -220,20 +229,11 @@ def main(argv: list[str] | None = None) -> int:
     rows = run(scale=0.01 if args.quick else 1.0, repeats=1 if args.quick else args.repeats)
     print()
     print_table(rows)
-    lidar = next(r for r in rows if r["environment"] == "sb3_adc/LidarObstacleCourse-v0" and r["level"] == "gym.make")
-    meets_target = lidar["steps_per_s"] >= LIDAR_TARGET_STEPS_PER_S
-    print(
-        f"\nLidar course, gym.make: {lidar['steps_per_s']:,.0f} steps/s (target {LIDAR_TARGET_STEPS_PER_S:,}): "
-        f"{'met' if meets_target else 'NOT met'}"
-    )
-    wheeled = next(
-        r for r in rows if r["environment"] == "sb3_adc/LidarObstacleCourse-v0" + WHEELED_SUFFIX and r["level"] == "gym.make"
-    )
-    wheeled_meets_target = wheeled["steps_per_s"] >= WHEELED_TARGET_STEPS_PER_S
-    print(
-        f"Lidar course with the wheeled robot, gym.make: {wheeled['steps_per_s']:,.0f} steps/s "
-        f"(target {WHEELED_TARGET_STEPS_PER_S:,}): {'met' if wheeled_meets_target else 'NOT met'}"
-    )
+    met = {}
+    for key, (name, column, target) in TARGETS.items():
+        value = next(r[column] for r in rows if r["environment"] == name and r["level"] == "gym.make")
+        met[key] = value <= target if column == "reset_ms" else value >= target
+        print(f"{name}, gym.make: {value:,.2f} {column} (target {target:,}): {'met' if met[key] else 'NOT met'}")
     if args.quick:
         return 0
 
@@ -253,10 +253,9 @@ def main(argv: list[str] | None = None) -> int:
         "stable_baselines3": stable_baselines3.__version__,
         "highway_env": getattr(highway_env, "__version__", "unknown"),
         "numpy": np.__version__,
-        "lidar_target_steps_per_s": LIDAR_TARGET_STEPS_PER_S,
-        "lidar_target_met": meets_target,
-        "wheeled_target_steps_per_s": WHEELED_TARGET_STEPS_PER_S,
-        "wheeled_target_met": wheeled_meets_target,
+        "resets_timed": RESETS,
+        "targets": TARGETS,
+        "targets_met": met,
         "make_kwargs": {name: kwargs for name, (_, kwargs, _) in ENVIRONMENTS.items() if kwargs},
     }
     (RESULTS_DIR / "env_throughput.json").write_text(json.dumps({"metadata": metadata, "results": rows}, indent=2) + "\n")
@@ -266,11 +265,11 @@ def main(argv: list[str] | None = None) -> int:
         for row in rows:
             csv.write(",".join(f"{row[c]:.6g}" if isinstance(row[c], float) else str(row[c]) for c in columns) + "\n")
     with (RESULTS_DIR / "env_throughput_table.csv").open("w") as table:  # rounded, for the docs
-        table.write("environment,level,steps/s,us/step,x Pendulum-v1\n")
+        table.write("environment,level,steps/s,us/step,x Pendulum-v1,reset ms (median)\n")
         for row in rows:
             table.write(
                 f"{row['environment']},{row['level']},{row['steps_per_s']:.0f},{row['us_per_step']:.1f},"
-                f"{row['ratio_to_pendulum']:.2f}\n"
+                f"{row['ratio_to_pendulum']:.2f},{row['reset_ms']:.2f}\n"
             )
     plot(rows, FIGURE_PATH)
     print(f"Wrote env_throughput.json, env_throughput.csv and env_throughput_table.csv in {RESULTS_DIR}, and {FIGURE_PATH}")

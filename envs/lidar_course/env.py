@@ -46,7 +46,7 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
     obstacles.
 
     The navigation task of the Actor-Dueling-Critic paper (Section 5.1.2, Figure 6), simulated with
-    pybullet (``p.DIRECT``, one physics client per environment; see
+    pybullet (``p.DIRECT``, one physics client per environment, two with the wheeled robot; see
     :class:`~sb3_adc_envs.lidar_course.simulation.CourseSimulation`).
 
     - **Action**: ``Box(-1, 1, (1,))``, the change of heading during the step, scaled to

@@ -100,14 +100,21 @@ def point_segment_distances(points: np.ndarray, segments: np.ndarray) -> np.ndar
     :param segments: ``(n, 4)`` segments
     :return: ``(n,)`` distances for one point, ``(m, n)`` for several
     """
-    starts = segments[:, :2]
-    deltas = segments[:, 2:] - starts
-    lengths_squared = np.einsum("ij,ij->i", deltas, deltas)
-    relative = np.asarray(points)[..., None, :] - starts
-    fraction = np.einsum("...ij,ij->...i", relative, deltas) / np.where(lengths_squared > 0.0, lengths_squared, 1.0)
-    fraction = np.clip(fraction, 0.0, 1.0)
-    offsets = relative - deltas * fraction[..., None]
-    return np.hypot(offsets[..., 0], offsets[..., 1])
+    # Coordinate by coordinate, in place: the arithmetic of the (m, n, 2) form, without its temporaries.
+    points = np.asarray(points, dtype=float)
+    segments = np.asarray(segments, dtype=float)
+    x0, y0 = segments[:, 0], segments[:, 1]
+    dx, dy = segments[:, 2] - x0, segments[:, 3] - y0
+    lengths_squared = dx * dx + dy * dy
+    x = points[..., 0, None] - x0
+    y = points[..., 1, None] - y0
+    fraction = x * dx
+    fraction += y * dy
+    fraction /= np.where(lengths_squared > 0.0, lengths_squared, 1.0)
+    np.clip(fraction, 0.0, 1.0, out=fraction)
+    x -= dx * fraction
+    y -= dy * fraction
+    return np.hypot(x, y, out=x)
 
 
 def closest_segment(point: np.ndarray, segments: np.ndarray) -> tuple[int, float]:
@@ -148,14 +155,14 @@ def sample_polyline(points: np.ndarray, spacing: float, closed: bool) -> np.ndar
     :param closed: Whether the last vertex joins the first
     :return: ``(m, 2)`` samples
     """
-    samples = []
-    for x0, y0, x1, y1 in polyline_segments(points, closed):
-        n = max(1, math.ceil(math.hypot(x1 - x0, y1 - y0) / spacing))
-        fractions = np.arange(n) / n
-        samples.append(np.column_stack([x0 + (x1 - x0) * fractions, y0 + (y1 - y0) * fractions]))
-    if not closed:
-        samples.append(points[-1:])
-    return np.vstack(samples)
+    segments = polyline_segments(points, closed)
+    counts = [max(1, math.ceil(math.hypot(x1 - x0, y1 - y0) / spacing)) for x0, y0, x1, y1 in segments.tolist()]
+    # Segment i's samples at fractions 0, 1/n_i, ..., (n_i - 1)/n_i of it, all segments at once.
+    steps = np.arange(sum(counts)) - np.repeat(np.cumsum(counts) - counts, counts)
+    fractions = (steps / np.repeat(counts, counts))[:, None]
+    starts = np.repeat(segments[:, :2], counts, axis=0)
+    samples = starts + np.repeat(segments[:, 2:] - segments[:, :2], counts, axis=0) * fractions
+    return samples if closed else np.vstack([samples, points[-1:]])
 
 
 class LoopProgress:

@@ -1,4 +1,4 @@
-"""The pybullet world of one lidar course: ground, walls, obstacles and a round robot with a planar lidar."""
+"""The pybullet worlds of one lidar course: walls, obstacles and a round robot with a planar lidar (and its ground)."""
 
 from __future__ import annotations
 
@@ -30,21 +30,21 @@ ROBOTS = ("kinematic", "wheeled")
 
 # Collision filter groups. pybullet lets a pair collide when either one's group is in the other's mask; a ray
 # hits a body when the body's group is in the ray's mask and the ray's group, Bullet's default (1), is in the
-# body's mask. Rays see walls and obstacles only, never the robot or the ground.
-# - The kinematic world is never stepped: walls (and obstacles) are in group 1 with all groups in their mask,
-#   the robot's mask is the walls' group, and the ground collides with nothing.
-# - The wheeled world is stepped, so no pair that needs no contact may pass the filter (pairs of overlapping
-#   walls made a step 7 times slower): the walls are in a group of their own whose mask is the rays' group
-#   only, the ground and the robot's wheels and casters collide with each other only, and the robot's body
-#   with nothing: its contact with a wall is the geometric test of `_touches_wall`, as for the kinematic
-#   robot (the episode ends there, so no wall ever needs to push it).
+# body's mask. Rays see walls and obstacles only, never the robot.
+# - The course's world is never stepped: walls (and obstacles) are in group 1 with all groups in their mask, and
+#   the robot's mask is the walls' group.
+# - The wheeled robot's world (ground and robot, no walls) is stepped: the ground and the robot's wheels and
+#   casters collide with each other only, and the robot's body with nothing: its contact with a wall is the
+#   geometric test of `_touches_wall` in the course's world, as for the kinematic robot (the episode ends
+#   there, so no wall ever needs to push it).
 _WALL_GROUP = 1
 _ROBOT_GROUP = 2
 _GROUND_GROUP = 4
 _WHEEL_GROUP = 8
-_STEPPED_WALL_GROUP = 16
-_RAY_GROUP = 1
 _ALL_GROUPS = 0xFFFF
+#: Walls and obstacles per multibody: the most links a ``createMultiBody`` call takes (pybullet 3.2 drops those
+#: beyond 127: ``MAX_CREATE_MULTI_BODY_LINKS``, 128 with the base).
+LINKS_PER_BODY = 127
 
 
 class CourseSimulation:
@@ -56,15 +56,17 @@ class CourseSimulation:
     ``getOverlappingObjects`` on the robot's bounding box, then ``getClosestPoints`` against the walls and
     obstacles found there) and casts the lidar's rays with one ``rayTestBatch``. Rays start at the robot's
     centre and are filtered to the walls' collision group (obstacles are in it too), so they never hit the
-    robot. :meth:`load` replaces the course in the same client.
+    robot. :meth:`load` replaces the course in the same client (see there how, and why it is fast).
 
     With ``robot="wheeled"`` the robot is a :class:`~sb3_adc_envs.lidar_course.wheeled.WheeledRobot` whose
-    wheels roll on the ground under gravity: :meth:`move_robot` puts it at rest at a pose, and
-    :meth:`drive_robot` runs its motors for one control period (``stepSimulation``), then reads the lidar
-    from the body's pose and tests the body against the walls as above.
+    wheels roll on the ground under gravity, in a second client that holds only the ground and the robot
+    (no wall ever touches the robot's wheels, so the stepped world needs none): :meth:`move_robot` puts it at
+    rest at a pose, and :meth:`drive_robot` runs its motors for one control period (``stepSimulation``). The
+    course's client then puts the robot's cylinder (the wheeled robot's body) at the body's pose, tilt
+    included, reads the lidar and tests the body against the walls as above.
 
     Every call passes this instance's ``physicsClientId``: several simulations run side by side in one
-    process. :meth:`close` disconnects the client; it is safe to call twice and runs on garbage collection.
+    process. :meth:`close` disconnects the clients; it is safe to call twice and runs on garbage collection.
 
     With ``rays_per_reading`` above 1, each of the lidar's readings is the nearest hit of that many rays spread
     evenly over its sector (``sector`` wide, centred on the reading's direction), all cast in the same
@@ -96,12 +98,9 @@ class CourseSimulation:
         self.max_range = max_range
         #: The wheeled robot's model (``None`` for the kinematic robot).
         self.wheeled = WheeledRobot(robot_radius, ROBOT_HEIGHT, SENSOR_HEIGHT) if robot == "wheeled" else None
-        # The stepped world: walls and obstacles in maximal coordinates (static rigid bodies rather than fixed
-        # multibodies, which a step still visits: 1.3x faster on the 200-wall training course).
-        self._static_rigid_bodies = self.wheeled is not None
-        self._wall_group = _WALL_GROUP if self.wheeled is None else _STEPPED_WALL_GROUP
-        self._wall_mask = _ALL_GROUPS if self.wheeled is None else _RAY_GROUP
         self._client: int | None = pybullet.connect(pybullet.DIRECT)
+        # The wheeled robot's stepped world, without walls: the step's cost does not grow with the course.
+        self._physics_client: int | None = pybullet.connect(pybullet.DIRECT) if self.wheeled is not None else None
 
         #: ``(n_rays, 2)`` vectors of the lidar's readings in the robot's frame (unit direction times ``max_range``).
         self.ray_vectors = max_range * np.column_stack([np.cos(ray_angles), np.sin(ray_angles)])
@@ -119,51 +118,105 @@ class CourseSimulation:
         self._aabb_min = [0.0, 0.0, ROBOT_GROUND_CLEARANCE]
         self._aabb_max = [0.0, 0.0, ROBOT_GROUND_CLEARANCE + ROBOT_HEIGHT]
         self._hits: tuple[tuple[int, ...], ...] = ()
+        self._part_offsets: dict[int, int] = {}
         self.load(course)
 
     def load(self, course: Course) -> None:
         """
-        Build a course in this client, replacing the one there (``resetSimulation``, then every body anew).
+        Build a course in this client, replacing the one there, and put the robot at rest at its start.
+
+        The world is emptied (``resetSimulation``: pybullet frees collision shapes no other way, and the walls of
+        every layout have sizes of their own) and rebuilt: the robot's cylinder, then the walls and obstacles as
+        the links of a few fixed multibodies, :data:`LINKS_PER_BODY` each, one ``createMultiBody`` call per
+        multibody (a call costs about 90 microseconds: a body per wall made a procedural reset take 20 ms). The
+        wheeled robot's world (ground and robot) is emptied and rebuilt too: each course starts from the same
+        physics state.
 
         :param course: The course
         """
         client = self._client
         if client is None:
             raise RuntimeError("the simulation is closed")
-        pybullet.resetSimulation(physicsClientId=client)
         self.course = course
-        ground = pybullet.createMultiBody(
-            baseMass=0.0,
-            baseCollisionShapeIndex=pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client),
-            physicsClientId=client,
-        )
-        wheeled = self.wheeled
-        ground_mask = 0 if wheeled is None else _WHEEL_GROUP
-        pybullet.setCollisionFilterGroupMask(ground, -1, _GROUND_GROUP, ground_mask, physicsClientId=client)
-        #: Body ids of the wall segments, then of the obstacles (consecutive).
-        self.wall_ids = [self._create_wall(segment, course.wall_thickness) for segment in course.walls]
-        self.obstacle_ids = [self._create_obstacle(obstacle) for obstacle in course.obstacles]
-        self._first_wall, self._last_wall = self.wall_ids[0], (self.obstacle_ids or self.wall_ids)[-1]
-        if wheeled is not None:
-            wheeled.configure_world(client)
-            self.robot_id = wheeled.build(client)
-            pybullet.setCollisionFilterGroupMask(self.robot_id, -1, _ROBOT_GROUP, 0, physicsClientId=client)
-            for link in wheeled.link_ids:
-                pybullet.setCollisionFilterGroupMask(self.robot_id, link, _WHEEL_GROUP, _GROUND_GROUP, physicsClientId=client)
-            wheeled.place(course.start.x, course.start.y, course.start.heading)
-            return
+        pybullet.resetSimulation(physicsClientId=client)
         self.robot_id = pybullet.createMultiBody(
             baseMass=0.0,
             baseCollisionShapeIndex=pybullet.createCollisionShape(
                 pybullet.GEOM_CYLINDER, radius=self.robot_radius, height=ROBOT_HEIGHT, physicsClientId=client
             ),
-            basePosition=[course.start.x, course.start.y, SENSOR_HEIGHT],
             physicsClientId=client,
         )
         pybullet.setCollisionFilterGroupMask(self.robot_id, -1, _ROBOT_GROUP, _WALL_GROUP, physicsClientId=client)
+        shapes: list[int] = []
+        positions: list[list[float]] = []
+        orientations: list[list[float]] = []
+        for segment in course.walls:
+            self._add_wall(segment, course.wall_thickness, shapes, positions, orientations)
+        for obstacle in course.obstacles:
+            self._add_obstacle(obstacle, shapes, positions, orientations)
+        self._part_offsets = {}
+        for first in range(0, len(shapes), LINKS_PER_BODY):
+            parts = slice(first, first + LINKS_PER_BODY)
+            n_links = len(shapes[parts])
+            body = pybullet.createMultiBody(
+                baseMass=0.0,
+                linkMasses=[0.0] * n_links,
+                linkCollisionShapeIndices=shapes[parts],
+                linkVisualShapeIndices=[-1] * n_links,
+                linkPositions=positions[parts],
+                linkOrientations=orientations[parts],
+                linkInertialFramePositions=[[0.0, 0.0, 0.0]] * n_links,
+                linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * n_links,
+                linkParentIndices=[0] * n_links,
+                linkJointTypes=[pybullet.JOINT_FIXED] * n_links,
+                linkJointAxis=[[0.0, 0.0, 1.0]] * n_links,
+                physicsClientId=client,
+            )
+            if pybullet.getNumJoints(body, physicsClientId=client) != n_links:
+                raise RuntimeError(f"pybullet built {n_links} links short; lower LINKS_PER_BODY ({LINKS_PER_BODY})")
+            self._part_offsets[body] = first
+            for link in range(n_links):
+                pybullet.setCollisionFilterGroupMask(body, link, _WALL_GROUP, _ALL_GROUPS, physicsClientId=client)
+        #: Ids of the wall segments, then of the obstacles: their indices in the course's walls, then obstacles.
+        self.wall_ids = list(range(len(course.walls)))
+        self.obstacle_ids = list(range(len(course.walls), len(shapes)))
+        start = course.start
+        if self.wheeled is not None:
+            self._build_wheeled_world()
+            self.wheeled.place(start.x, start.y, start.heading)
+            self._follow_wheeled()
+        else:
+            pybullet.resetBasePositionAndOrientation(
+                self.robot_id, [start.x, start.y, SENSOR_HEIGHT], [0.0, 0.0, 0.0, 1.0], physicsClientId=client
+            )
 
-    def _create_obstacle(self, obstacle: Obstacle) -> int:
-        # Obstacles are static bodies in the walls' collision group: the rays see them and the robot hits them.
+    def _build_wheeled_world(self) -> None:
+        # The stepped world of the wheeled robot: the ground and the robot, anew.
+        client, wheeled = self._physics_client, self.wheeled
+        assert client is not None
+        assert wheeled is not None
+        pybullet.resetSimulation(physicsClientId=client)
+        ground = pybullet.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client),
+            physicsClientId=client,
+        )
+        pybullet.setCollisionFilterGroupMask(ground, -1, _GROUND_GROUP, _WHEEL_GROUP, physicsClientId=client)
+        wheeled.configure_world(client)
+        robot = wheeled.build(client)
+        pybullet.setCollisionFilterGroupMask(robot, -1, _ROBOT_GROUP, 0, physicsClientId=client)
+        for link in wheeled.link_ids:
+            pybullet.setCollisionFilterGroupMask(robot, link, _WHEEL_GROUP, _GROUND_GROUP, physicsClientId=client)
+
+    def _follow_wheeled(self) -> None:
+        # The robot's cylinder in the course's world takes the wheeled robot's body's pose, tilt included.
+        assert self.wheeled is not None
+        position, orientation = self.wheeled.base_pose
+        pybullet.resetBasePositionAndOrientation(self.robot_id, position, orientation, physicsClientId=self._client)
+
+    def _add_obstacle(
+        self, obstacle: Obstacle, shapes: list[int], positions: list[list[float]], orientations: list[list[float]]
+    ) -> None:
         if obstacle.shape == "cylinder":
             shape = pybullet.createCollisionShape(
                 pybullet.GEOM_CYLINDER, radius=obstacle.length / 2.0, height=WALL_HEIGHT, physicsClientId=self._client
@@ -174,47 +227,35 @@ class CourseSimulation:
                 halfExtents=[obstacle.length / 2.0, obstacle.width / 2.0, WALL_HEIGHT / 2.0],
                 physicsClientId=self._client,
             )
-        body = pybullet.createMultiBody(
-            baseMass=0.0,
-            baseCollisionShapeIndex=shape,
-            basePosition=[obstacle.x, obstacle.y, WALL_HEIGHT / 2.0],
-            baseOrientation=[0.0, 0.0, math.sin(obstacle.yaw / 2.0), math.cos(obstacle.yaw / 2.0)],
-            useMaximalCoordinates=self._static_rigid_bodies,
-            physicsClientId=self._client,
-        )
-        self._make_static(body)
-        return int(body)
+        shapes.append(shape)
+        positions.append([obstacle.x, obstacle.y, WALL_HEIGHT / 2.0])
+        orientations.append([0.0, 0.0, math.sin(obstacle.yaw / 2.0), math.cos(obstacle.yaw / 2.0)])
 
-    def _create_wall(self, segment: np.ndarray, thickness: float) -> int:
+    def _add_wall(
+        self,
+        segment: np.ndarray,
+        thickness: float,
+        shapes: list[int],
+        positions: list[list[float]],
+        orientations: list[list[float]],
+    ) -> None:
         x0, y0, x1, y1 = (float(value) for value in segment)
         length = math.hypot(x1 - x0, y1 - y0)
         yaw = math.atan2(y1 - y0, x1 - x0)
         # Half a thickness longer at both ends, so that the walls of a polyline overlap at its joints.
-        shape = pybullet.createCollisionShape(
-            pybullet.GEOM_BOX,
-            halfExtents=[length / 2.0 + thickness / 2.0, thickness / 2.0, WALL_HEIGHT / 2.0],
-            physicsClientId=self._client,
+        shapes.append(
+            pybullet.createCollisionShape(
+                pybullet.GEOM_BOX,
+                halfExtents=[length / 2.0 + thickness / 2.0, thickness / 2.0, WALL_HEIGHT / 2.0],
+                physicsClientId=self._client,
+            )
         )
-        wall = pybullet.createMultiBody(
-            baseMass=0.0,
-            baseCollisionShapeIndex=shape,
-            basePosition=[(x0 + x1) / 2.0, (y0 + y1) / 2.0, WALL_HEIGHT / 2.0],
-            baseOrientation=[0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)],
-            useMaximalCoordinates=self._static_rigid_bodies,
-            physicsClientId=self._client,
-        )
-        self._make_static(wall)
-        return int(wall)
-
-    def _make_static(self, body: int) -> None:
-        # A wall's or an obstacle's collision filter; in the stepped world, asleep: a step skips it (1.5x faster).
-        pybullet.setCollisionFilterGroupMask(body, -1, self._wall_group, self._wall_mask, physicsClientId=self._client)
-        if self._static_rigid_bodies:
-            pybullet.changeDynamics(body, -1, activationState=pybullet.ACTIVATION_STATE_SLEEP, physicsClientId=self._client)
+        positions.append([(x0 + x1) / 2.0, (y0 + y1) / 2.0, WALL_HEIGHT / 2.0])
+        orientations.append([0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)])
 
     @property
     def client_id(self) -> int | None:
-        """The pybullet physics client id, ``None`` once closed."""
+        """The pybullet physics client id of the course (walls, obstacles, the robot's cylinder), ``None`` once closed."""
         return self._client
 
     def move_robot(self, x: float, y: float, heading: float, lidar_out: np.ndarray) -> bool:
@@ -230,6 +271,7 @@ class CourseSimulation:
         """
         if self.wheeled is not None:
             self.wheeled.place(x, y, heading)
+            self._follow_wheeled()
             return self._sense(x, y, heading, lidar_out)
         position = self._position
         position[0] = x
@@ -254,6 +296,7 @@ class CourseSimulation:
         if self.wheeled is None:
             raise RuntimeError("drive_robot() drives the wheeled robot; place the kinematic robot with move_robot()")
         x, y, heading = self.wheeled.drive(advance, turn)
+        self._follow_wheeled()
         return x, y, heading, self._sense(x, y, heading, lidar_out)
 
     def _sense(self, x: float, y: float, heading: float, lidar_out: np.ndarray) -> bool:
@@ -273,7 +316,7 @@ class CourseSimulation:
         ray_from = self._ray_from
         ray_from[:, 0] = x
         ray_from[:, 1] = y
-        hits = pybullet.rayTestBatch(ray_from, ray_to, collisionFilterMask=self._wall_group, physicsClientId=client)
+        hits = pybullet.rayTestBatch(ray_from, ray_to, collisionFilterMask=_WALL_GROUP, physicsClientId=client)
         per_reading = self.rays_per_reading
         if per_reading == 1:
             for i, hit in enumerate(hits):
@@ -288,14 +331,16 @@ class CourseSimulation:
     @property
     def ray_bodies(self) -> list[int]:
         """
-        Body id each reading of the last :meth:`move_robot` or :meth:`drive_robot` met (a wall's, an obstacle's,
-        or -1 for none): with several rays per reading, the body of its nearest hit.
+        Id each reading of the last :meth:`move_robot` or :meth:`drive_robot` met (a wall's or an obstacle's, of
+        :attr:`wall_ids` and :attr:`obstacle_ids`, or -1 for none): with several rays per reading, that of its
+        nearest hit.
         """
         per_reading = self.rays_per_reading
-        if per_reading == 1:
-            return [int(hit[0]) for hit in self._hits]
         hits = self._hits
-        return [int(min(hits[i : i + per_reading], key=lambda hit: hit[2])[0]) for i in range(0, len(hits), per_reading)]
+        if per_reading > 1:
+            hits = tuple(min(hits[i : i + per_reading], key=lambda hit: hit[2]) for i in range(0, len(hits), per_reading))
+        # The rays see the course's links only (body -1 where a ray hits nothing).
+        return [self._part_offsets[hit[0]] + hit[1] if hit[0] >= 0 else -1 for hit in hits]
 
     def _touches_wall(self, x: float, y: float) -> bool:
         return next(self._touched_bodies(x, y), None) is not None
@@ -312,17 +357,17 @@ class CourseSimulation:
         client = self._client
         candidates = pybullet.getOverlappingObjects(aabb_min, aabb_max, physicsClientId=client)
         if candidates:
-            first, last = self._first_wall, self._last_wall
-            for body, _ in candidates:
-                # -1: the body (the wheeled robot's wheels and casters lie inside its footprint).
-                if first <= body <= last and pybullet.getClosestPoints(
-                    self.robot_id, body, 0.0, linkIndexA=-1, physicsClientId=client
+            offsets = self._part_offsets
+            for body, link in candidates:
+                # -1: the robot's body (the wheeled robot's wheels and casters lie inside its footprint).
+                if body in offsets and pybullet.getClosestPoints(
+                    self.robot_id, body, 0.0, linkIndexA=-1, linkIndexB=link, physicsClientId=client
                 ):
-                    yield body
+                    yield offsets[body] + link
 
     def touched_bodies(self, x: float, y: float) -> list[int]:
         """
-        The body ids of the walls and obstacles that the robot, where the last :meth:`move_robot` or
+        The ids of the walls and obstacles that the robot, where the last :meth:`move_robot` or
         :meth:`drive_robot` left it at ``(x, y)``, touches (ids of :attr:`wall_ids` and :attr:`obstacle_ids`, the
         ids :attr:`ray_bodies` reports). Empty without a collision. For diagnostics, as :meth:`touching`.
 
@@ -334,7 +379,7 @@ class CourseSimulation:
     def touching(self, x: float, y: float) -> list[str]:
         """
         What the robot, where the last :meth:`move_robot` or :meth:`drive_robot` left it at ``(x, y)``, touches:
-        one name per body, ``"wall"`` for a segment of the course's walls, else the obstacle's shape (``"box"``,
+        one name per wall or obstacle, ``"wall"`` for a segment of the course's walls, else the obstacle's shape (``"box"``,
         ``"cylinder"``, or ``"stub"`` for a wall stub). Empty without a collision. For diagnostics (which obstacles
         a policy hits); the step itself only asks whether there is any.
 
@@ -345,10 +390,10 @@ class CourseSimulation:
 
     def body_kinds(self, bodies: list[int]) -> list[str]:
         """
-        What each body is, in :meth:`touching`'s names: ``"wall"`` for a segment of the course's walls, else the
+        What each id is, in :meth:`touching`'s names: ``"wall"`` for a segment of the course's walls, else the
         obstacle's shape (``"box"``, ``"cylinder"``, or ``"stub"`` for a wall stub).
 
-        :param bodies: Body ids of :attr:`wall_ids` and :attr:`obstacle_ids` (as :meth:`touched_bodies` gives them)
+        :param bodies: Ids of :attr:`wall_ids` and :attr:`obstacle_ids` (as :meth:`touched_bodies` gives them)
         """
         first_obstacle = self.obstacle_ids[0] if self.obstacle_ids else None
         names = []
@@ -361,10 +406,12 @@ class CourseSimulation:
         return names
 
     def close(self) -> None:
-        """Disconnect the physics client (safe to call more than once)."""
-        client, self._client = self._client, None
-        if client is not None and pybullet is not None and pybullet.isConnected(client):
-            pybullet.disconnect(physicsClientId=client)
+        """Disconnect the physics clients (safe to call more than once)."""
+        clients = (self._client, self._physics_client)
+        self._client = self._physics_client = None
+        for client in clients:
+            if client is not None and pybullet is not None and pybullet.isConnected(client):
+                pybullet.disconnect(physicsClientId=client)
 
     def __del__(self) -> None:
         # At interpreter shutdown module globals may already be gone: never raise from here.

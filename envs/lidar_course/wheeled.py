@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 from sb3_adc.extras import requires_extra
 
@@ -85,6 +86,9 @@ class WheeledRobot:
         self._zero = [0.0, 0.0, 0.0]
         self._targets = [0.0, 0.0]
         self._forces = [MOTOR_FORCE, MOTOR_FORCE]
+        #: ``(position, orientation)`` of the body's base where the last :meth:`place` or :meth:`drive` left it:
+        #: ``[x, y, z]`` [m] and the quaternion ``[x, y, z, w]``, as pybullet takes them.
+        self.base_pose: tuple[Sequence[float], Sequence[float]] = (self._position, self._orientation)
 
     @staticmethod
     def configure_world(client: int) -> None:
@@ -193,6 +197,7 @@ class WheeledRobot:
         orientation[2] = math.sin(heading / 2.0)
         orientation[3] = math.cos(heading / 2.0)
         pybullet.resetBasePositionAndOrientation(robot, position, orientation, physicsClientId=client)
+        self.base_pose = (position, orientation)
         pybullet.resetBaseVelocity(robot, self._zero, self._zero, physicsClientId=client)
         for joint in _WHEELS:
             pybullet.resetJointState(robot, joint, 0.0, 0.0, physicsClientId=client)
@@ -226,6 +231,7 @@ class WheeledRobot:
             physicsClientId=client,
         )
         pybullet.stepSimulation(physicsClientId=client)
-        (x, y, _), (qx, qy, qz, qw) = pybullet.getBasePositionAndOrientation(robot, physicsClientId=client)
+        self.base_pose = pose = pybullet.getBasePositionAndOrientation(robot, physicsClientId=client)
+        (x, y, _), (qx, qy, qz, qw) = pose
         heading = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
         return x, y, heading
