@@ -23,7 +23,14 @@ leave it: the corridor is a closed loop and the start pose must lie inside it, a
 at least :data:`OBSTACLE_START_CLEARANCE` from the start pose; a robot must still be able to drive round a
 corridor (checked with the robot's radius by :meth:`Course.check_robot_fits`). Every error names the file
 and the field. YAML files are read as YAML 1.2 reads numbers (``-1e300`` is a number, not a string), without
-aliases, and at most :data:`MAX_COURSE_FILE_BYTES` long.
+aliases, and at most :data:`MAX_COURSE_FILE_BYTES` long (:mod:`~sb3_adc_envs.lidar_course.course_yaml`).
+
+A small file can describe a huge course, so the sizes that set the cost of loading one are bounded, each
+checked before the memory it sets is allocated: the course's extent (:data:`MAX_COURSE_SIDE`), the points of
+the centre line and of the walls (:data:`MAX_CENTERLINE_POINTS`, :data:`MAX_WALL_POINTS`), the wall segments
+(:data:`MAX_WALL_SEGMENTS`), the obstacles (:data:`MAX_OBSTACLES`) and the distances of the overlap check
+(:data:`MAX_OVERLAP_CHECK_DISTANCES`); the passability grid has its own bound
+(:data:`~sb3_adc_envs.lidar_course.passability.MAX_GRID_CELLS`). Each error names the limit and the value.
 """
 
 from __future__ import annotations
@@ -32,7 +39,6 @@ import dataclasses
 import json
 import math
 import os
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,6 +47,7 @@ import numpy as np
 import yaml
 
 from sb3_adc_envs.lidar_course import geometry
+from sb3_adc_envs.lidar_course.course_yaml import CourseYamlError, load_course_yaml
 from sb3_adc_envs.lidar_course.passability import blocked_corridor_point
 
 #: Folder of the courses shipped with the package.
@@ -50,11 +57,28 @@ COURSE_SUFFIXES = (".yml", ".yaml", ".json")
 #: Wall thickness when a course file does not give one [m].
 DEFAULT_WALL_THICKNESS = 0.1
 
-#: Largest course file accepted [bytes]: a course is a few hundred bytes, and a bound keeps a damaged or
-#: hostile file from exhausting memory.
-MAX_COURSE_FILE_BYTES = 1_000_000
+#: Largest course file accepted [bytes]: the shipped ones have about 1 kB, a course at every count limit below
+#: about 200 kB, and PyYAML reads about 100 kB/s (the hyperparameter files have the same bound).
+MAX_COURSE_FILE_BYTES = 256 * 1024
 #: Largest absolute coordinate or size accepted [m].
 MAX_COORDINATE = 10_000.0
+#: Largest side of a course's bounding box, its walls' thickness included [m]: the shipped courses span at most
+#: 19.6 m and the default procedural layouts 17.2 m. The bound keeps the passability grid
+#: (:data:`~sb3_adc_envs.lidar_course.passability.MAX_GRID_CELLS`) and the simulation small.
+MAX_COURSE_SIDE = 200.0
+#: Most points of ``corridor.centerline`` (the shipped courses have at most 14, before rounding the corners).
+MAX_CENTERLINE_POINTS = 2_000
+#: Most points of all ``walls`` polylines together (the shipped courses have at most 16).
+MAX_WALL_POINTS = 2_000
+#: Most wall segments of a course, the corridor's two walls (after rounding its corners) included: the shipped
+#: courses have at most 324, the default procedural layouts 196.
+MAX_WALL_SEGMENTS = 5_000
+#: Most obstacles (the shipped courses have at most 8, the default procedural layouts 8).
+MAX_OBSTACLES = 500
+#: Most point-to-wall distances of the check that a corridor does not overlap itself: centre-line samples
+#: (:data:`_OVERLAP_CHECK_SPACING` apart) times wall segments. The shipped courses need at most 412,000 and the
+#: default procedural layouts 171,000; the bound keeps the check under a few seconds.
+MAX_OVERLAP_CHECK_DISTANCES = 50_000_000
 #: Obstacles must leave at least this distance free around the start position [m].
 OBSTACLE_START_CLEARANCE = 1.0
 #: Shapes of obstacles, and the keys of each.
@@ -71,6 +95,8 @@ _START_KEYS = ("x", "y", "heading_deg")
 _OVERLAP_CHECK_SPACING = 0.05
 # Relative tolerance of that check (mitred joints put walls slightly further away, never closer).
 _OVERLAP_TOLERANCE = 1e-3
+# Distances computed at once by that check: a block of samples times the walls (8 MB per temporary array).
+_OVERLAP_CHECK_BLOCK = 1_000_000
 
 
 class CourseError(ValueError):
@@ -280,37 +306,27 @@ def load_course(course: str | os.PathLike[str]) -> Course:
     size = path.stat().st_size
     if size > MAX_COURSE_FILE_BYTES:
         raise CourseError(
-            source, "<file>", f"is {size:,} bytes long; a course file may have at most {MAX_COURSE_FILE_BYTES:,}."
+            source,
+            "<file>",
+            f"is {size:,} bytes long; a course file may have at most MAX_COURSE_FILE_BYTES = {MAX_COURSE_FILE_BYTES:,}.",
         )
-    text = path.read_text(encoding="utf-8")
+    with path.open("rb") as stream:
+        raw = stream.read(MAX_COURSE_FILE_BYTES + 1)  # the file may have grown since stat()
+    if len(raw) > MAX_COURSE_FILE_BYTES:
+        raise CourseError(source, "<file>", f"is longer than MAX_COURSE_FILE_BYTES = {MAX_COURSE_FILE_BYTES:,} bytes.")
     try:
-        data = json.loads(text) if path.suffix == ".json" else _load_yaml(text)
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise CourseError(
+            source, "<file>", f"is not a UTF-8 text file ({error.reason} at byte {error.start}); save it as UTF-8."
+        ) from None
+    try:
+        data = json.loads(text) if path.suffix == ".json" else load_course_yaml(text)
+    except CourseYamlError as error:
+        raise CourseError(source, "<file>", f"is over a limit of sb3_adc_envs.lidar_course.course_yaml: {error}") from None
     except (json.JSONDecodeError, yaml.YAMLError, RecursionError) as error:
         raise CourseError(source, "<file>", f"cannot be parsed: {str(error)[:500]}") from None
     return course_from_dict(data, source=source, default_name=path.stem)
-
-
-class _CourseYamlLoader(yaml.SafeLoader):
-    """PyYAML's safe loader, reading floats as YAML 1.2 does: ``1e3`` and ``-1e300`` are numbers, not strings."""
-
-
-# PyYAML implements YAML 1.1, where a float needs a dot and a signed exponent (``1.0e+3``); YAML 1.2 and JSON
-# accept ``1e3``. The resolver below adds the exponent forms without a dot; every other scalar resolves as before.
-_CourseYamlLoader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
-    list("-+0123456789"),
-)
-
-
-def _load_yaml(text: str) -> Any:
-    # Aliases are refused before anything is built: a few hundred bytes of nested aliases expand to gigabytes.
-    for event in yaml.parse(text, Loader=_CourseYamlLoader):
-        if isinstance(event, yaml.AliasEvent):
-            mark = event.start_mark
-            line = f" (line {mark.line + 1})" if mark is not None else ""
-            raise yaml.YAMLError(f"YAML aliases (*name) are not allowed in course files{line}; write the values out.")
-    return yaml.load(text, Loader=_CourseYamlLoader)
 
 
 def course_from_dict(data: Any, source: str = "<course>", default_name: str = "course") -> Course:
@@ -347,6 +363,15 @@ def course_from_dict(data: Any, source: str = "<course>", default_name: str = "c
             if len(polyline) >= 4 and np.allclose(polyline[0], polyline[-1]):
                 closed_polylines.append(polyline)
     walls = np.vstack(segments)
+    if len(walls) > MAX_WALL_SEGMENTS:
+        raise CourseError(
+            source,
+            "walls",
+            f"the course has {len(walls):,} wall segments (the corridor's two walls and the `walls` polylines "
+            f"together); a course may have at most MAX_WALL_SEGMENTS = {MAX_WALL_SEGMENTS:,}.",
+        )
+    half = wall_thickness / 2.0
+    _check_extent(source, "<extent>", walls[:, [0, 2]].ravel(), walls[:, [1, 3]].ravel(), half, "the course's walls")
 
     start_point = np.array([start.x, start.y])
     if corridor is not None:
@@ -430,6 +455,19 @@ def _positive(source: str, field: str, value: Any) -> float:
     return number
 
 
+def _check_extent(source: str, field: str, xs: np.ndarray, ys: np.ndarray, margin: float, what: str) -> None:
+    """Refuse points whose bounding box, widened by ``margin`` on every side, has a side over MAX_COURSE_SIDE."""
+    width = float(xs.max() - xs.min()) + 2.0 * margin
+    height = float(ys.max() - ys.min()) + 2.0 * margin
+    if max(width, height) > MAX_COURSE_SIDE:
+        raise CourseError(
+            source,
+            field,
+            f"{what} span {width:,.6g} m x {height:,.6g} m; a course must fit in a square of "
+            f"MAX_COURSE_SIDE = {MAX_COURSE_SIDE:g} m (its walls' thickness included).",
+        )
+
+
 def _points(source: str, field: str, value: Any, min_points: int) -> np.ndarray:
     if not isinstance(value, list) or len(value) < min_points:
         raise CourseError(source, field, f"must be a list of at least {min_points} [x, y] points, got {_short_repr(value)}.")
@@ -471,7 +509,17 @@ def _parse_corridor(source: str, value: Any, wall_thickness: float) -> Corridor:
         if key not in value:
             raise CourseError(source, f"corridor.{key}", "missing; a corridor needs a width and a centerline.")
     width = _positive(source, "corridor.width", value["width"])
-    centerline = _points(source, "corridor.centerline", value["centerline"], min_points=3)
+    points = value["centerline"]
+    if isinstance(points, list) and len(points) > MAX_CENTERLINE_POINTS:
+        raise CourseError(
+            source,
+            "corridor.centerline",
+            f"has {len(points):,} points; a centre line may have at most MAX_CENTERLINE_POINTS = {MAX_CENTERLINE_POINTS:,}.",
+        )
+    centerline = _points(source, "corridor.centerline", points, min_points=3)
+    # The walls lie half the width and a wall thickness beyond the centre line (further at sharp corners, which
+    # the overlap check refuses); the whole course is checked again once its walls are built.
+    _check_extent(source, "corridor", centerline[:, 0], centerline[:, 1], width / 2.0 + wall_thickness, "the corridor's walls")
     if np.allclose(centerline[0], centerline[-1]):
         centerline = centerline[:-1]  # the loop is closed implicitly; a repeated first point is allowed
     if len(centerline) < 3:
@@ -482,6 +530,13 @@ def _parse_corridor(source: str, value: Any, wall_thickness: float) -> Corridor:
             centerline = geometry.round_corners(centerline, radius)
         except ValueError as error:
             raise CourseError(source, "corridor.corner_radius", f"too large: {error}.") from error
+        if 2 * len(centerline) > MAX_WALL_SEGMENTS:
+            raise CourseError(
+                source,
+                "corridor.corner_radius",
+                f"rounding the corners gives the corridor {2 * len(centerline):,} wall segments; a course may have "
+                f"at most MAX_WALL_SEGMENTS = {MAX_WALL_SEGMENTS:,}. Give the centre line fewer corners.",
+            )
     corridor = Corridor(centerline=centerline, width=width)
     _check_corridor_does_not_overlap(source, corridor, wall_thickness)
     return corridor
@@ -501,8 +556,24 @@ def _check_corridor_does_not_overlap(source: str, corridor: Corridor, wall_thick
     # that comes back near itself, or a corner too sharp for the width, puts a wall closer than that.
     walls = np.vstack(_corridor_walls(corridor, wall_thickness))
     required = corridor.width / 2.0 * (1.0 - _OVERLAP_TOLERANCE)
+    # Count the samples before drawing them: the distances are samples x walls.
+    segments = geometry.polyline_segments(corridor.centerline, closed=True)
+    lengths = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
+    n_samples = int(np.maximum(np.ceil(lengths / _OVERLAP_CHECK_SPACING), 1).sum())
+    if n_samples * len(walls) > MAX_OVERLAP_CHECK_DISTANCES:
+        raise CourseError(
+            source,
+            "corridor.centerline",
+            f"checking that the corridor does not overlap itself needs {n_samples:,} centre-line samples x "
+            f"{len(walls):,} wall segments = {n_samples * len(walls):,} distances; at most MAX_OVERLAP_CHECK_DISTANCES = "
+            f"{MAX_OVERLAP_CHECK_DISTANCES:,} are computed. Shorten the centre line or give it fewer corners.",
+        )
     samples = geometry.sample_polyline(corridor.centerline, _OVERLAP_CHECK_SPACING, closed=True)
-    clearances = geometry.point_segment_distances(samples, walls).min(axis=1) - wall_thickness / 2.0
+    block = max(1, _OVERLAP_CHECK_BLOCK // len(walls))
+    clearances = np.concatenate(
+        [geometry.point_segment_distances(samples[i : i + block], walls).min(axis=1) for i in range(0, len(samples), block)]
+    )
+    clearances -= wall_thickness / 2.0
     worst = int(np.argmin(clearances))
     if clearances[worst] < required:
         point = samples[worst]
@@ -521,6 +592,13 @@ def _parse_walls(source: str, value: Any) -> list[np.ndarray]:
         raise CourseError(
             source, "walls", f"must be a non-empty list of polylines [[x, y], [x, y], ...], got {_short_repr(value)}."
         )
+    n_points = sum(len(polyline) if isinstance(polyline, list) else 1 for polyline in value)
+    if n_points > MAX_WALL_POINTS:
+        raise CourseError(
+            source,
+            "walls",
+            f"has {n_points:,} points in all; the wall polylines may have at most MAX_WALL_POINTS = {MAX_WALL_POINTS:,}.",
+        )
     return [_points(source, f"walls[{i}]", polyline, min_points=2) for i, polyline in enumerate(value)]
 
 
@@ -530,6 +608,10 @@ def _parse_obstacles(source: str, value: Any, wall_thickness: float) -> list[Obs
             source,
             "obstacles",
             f"must be a list of obstacles {{shape: ..., position: [x, y], ...}}, got {_short_repr(value)}.",
+        )
+    if len(value) > MAX_OBSTACLES:
+        raise CourseError(
+            source, "obstacles", f"has {len(value):,} obstacles; a course may have at most MAX_OBSTACLES = {MAX_OBSTACLES:,}."
         )
     return [_parse_obstacle(source, f"obstacles[{i}]", item, wall_thickness) for i, item in enumerate(value)]
 

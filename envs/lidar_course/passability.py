@@ -30,6 +30,11 @@ if TYPE_CHECKING:
 
 #: Side of a grid cell [m].
 GRID_RESOLUTION = 0.04
+#: Most cells of a grid: a course of the largest side
+#: (:data:`~sb3_adc_envs.lidar_course.course.MAX_COURSE_SIDE`, 200 m) needs about 25 million at
+#: :data:`GRID_RESOLUTION` (the shipped courses at most 160,000). The grid and the distance transform take about
+#: 20 bytes a cell, so the bound keeps them under about 600 MB.
+MAX_GRID_CELLS = 30_000_000
 # Distance of the seed points ahead of and behind the cut, and the radius around them searched for free cells [m].
 _SEED_OFFSET = 0.4
 _SEED_RADIUS = 0.3
@@ -77,8 +82,21 @@ def robot_fits(course: Course, robot_radius: float, resolution: float = GRID_RES
     :param robot_radius: Radius of the robot [m]
     :param resolution: Side of a cell [m]
     :return: a boolean ``(rows, columns)`` array (row 0 at the top) and the grid it lies on
+    :raises CourseError: naming ``<extent>``, if the grid would have more than :data:`MAX_GRID_CELLS` cells
     """
     grid = _Grid(course.bounds, resolution, margin=robot_radius + 2.0 * resolution)
+    cells = grid.shape[0] * grid.shape[1]
+    if cells > MAX_GRID_CELLS:
+        # Imported here: the course module imports this one.
+        from sb3_adc_envs.lidar_course.course import CourseError
+
+        raise CourseError(
+            course.source,
+            "<extent>",
+            f"the passability grid over the course ({grid.shape[1]:,} x {grid.shape[0]:,} cells of {resolution:g} m, "
+            f"robot radius {robot_radius:g} m) would have {cells:,} cells; it may have at most "
+            f"MAX_GRID_CELLS = {MAX_GRID_CELLS:,}. Make the course smaller.",
+        )
     image = grid.image()
     draw = ImageDraw.Draw(image)
     for x0, y0, x1, y1 in course.walls:
