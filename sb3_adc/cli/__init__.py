@@ -55,11 +55,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     from sb3_adc.cli.common import CommandError
     from sb3_adc.common.model_files import ModelFileError
     from sb3_adc.common.spaces import ActionSpaceError
-    from sb3_adc.experiment import RunInterrupted
+    from sb3_adc.experiment import RunInterrupted, RunLocked
     from sb3_adc.experiment.benchmark import RunSettingsMismatch
     from sb3_adc.experiment.divergence import NonFiniteValue, TrainingDiverged
     from sb3_adc.experiment.settings import SettingsError
     from sb3_adc.experiment.training import sigterm_as_sigint
+
+    try:  # a course file over a bound or malformed (the robot environments, when their extra is installed)
+        from sb3_adc_envs.lidar_course.course import CourseError
+    except ImportError:  # pragma: no cover - the envs extra is missing: no course can be read either
+        CourseError = HyperparamsError  # type: ignore[misc,assignment]
 
     user_errors = (
         HyperparamsError,  # a hyperparameter file, -params or a run's config.yml / args.yml
@@ -70,6 +75,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         FileNotFoundError,
         FileExistsError,
         RunSettingsMismatch,
+        RunLocked,  # another process is training the run, or running a benchmark in the folder
+        CourseError,  # a course file the lidar course refuses (names the file, field and limit)
     )
     args = parser.parse_args(argv)
     try:

@@ -5,7 +5,7 @@ and their statistics and plots (:mod:`~sb3_adc.experiment.plots`).
 """
 
 from sb3_adc.experiment.evaluation import FinalEvaluation
-from sb3_adc.experiment.layout import RunLayout, env_name
+from sb3_adc.experiment.layout import RunLayout, RunLocked, env_name
 from sb3_adc.experiment.manager import RunInterrupted
 from sb3_adc.experiment.settings import TrainSettings
 from sb3_adc.experiment.training import TrainResult, find_run, resume, train
@@ -14,6 +14,7 @@ __all__ = [
     "FinalEvaluation",
     "RunInterrupted",
     "RunLayout",
+    "RunLocked",
     "TrainResult",
     "TrainSettings",
     "env_name",

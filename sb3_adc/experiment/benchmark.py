@@ -10,12 +10,15 @@ are written to ``{log_folder}``: ``evaluations.csv`` (the evaluation curves), ``
 episodes) and ``final.csv`` (final evaluations), with the rows of every finished run in the folder, of this
 grid or not; see :mod:`sb3_adc.experiment.results` for the columns. ``invocations.json`` records each
 invocation that worked on the grid and its wall time, including one killed before it finished
-(:mod:`sb3_adc.experiment.invocations`).
+(:mod:`sb3_adc.experiment.invocations`). One invocation works on a log folder at a time: it holds the folder's lock
+(:class:`~sb3_adc.experiment.layout.FolderLock`) from before it writes anything until its tables are written, and a
+second one fails at once with :class:`~sb3_adc.experiment.layout.RunLocked`.
 """
 
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import dataclasses
 import glob
 import multiprocessing
@@ -35,7 +38,7 @@ import yaml
 
 from sb3_adc.config.loader import read_yaml_file
 from sb3_adc.experiment.invocations import InvocationJournal
-from sb3_adc.experiment.layout import DamagedFileError, RunLayout, env_name
+from sb3_adc.experiment.layout import DamagedFileError, FolderLock, RunLayout, env_name
 from sb3_adc.experiment.results import (
     EPISODE_COLUMNS,
     EVALUATION_COLUMNS,
@@ -53,6 +56,8 @@ EVALUATIONS_CSV = "evaluations.csv"
 EPISODES_CSV = "episodes.csv"
 FINAL_CSV = "final.csv"
 INTERRUPTED = "Interrupted: finished runs are kept, running ones saved a checkpoint. Re-run the same command to continue."
+#: What the holder of a benchmark log folder's lock is doing, for the error of a second invocation.
+BENCHMARK_ACTIVITY = "running a benchmark in it (sb3-adc benchmark, an experiment or a benchmark script)"
 
 #: Run settings that do not change a run's results: a run on disk may differ from the grid in them.
 _NEUTRAL_SETTINGS = frozenset({"log_folder", "run_dir", "device", "verbose", "progress_bar", "keep_checkpoints"})
@@ -492,6 +497,7 @@ def run_benchmarks(
     :return: One result per grid, in order
     :raises HyperparamsError: for invalid hyperparameters (before any run starts)
     :raises RunSettingsMismatch: if runs on disk were made with other settings (before any run starts)
+    :raises RunLocked: if another invocation is working on one of the log folders (before anything is written)
     """
     folders = [os.path.normpath(settings.log_folder) for settings in grids]
     if len(set(folders)) < len(folders):
@@ -504,9 +510,42 @@ def run_benchmarks(
         specs = settings.grid()
         if not specs:
             raise ValueError("the grid is empty: give at least one algorithm, environment and seed.")
-        check_runs_on_disk(settings)
+        check_runs_on_disk(settings)  # before anything is written, the log folders included
         jobs += [(spec, settings) for spec in specs]
         sizes.append(len(specs))
+    with contextlib.ExitStack() as locks:
+        # One invocation per log folder, until its tables are written; the runs on disk are checked again under
+        # the locks, in case another invocation changed them since.
+        for folder in sorted(folders):
+            locks.enter_context(FolderLock(folder, BENCHMARK_ACTIVITY))
+        for settings in grids:
+            check_runs_on_disk(settings)
+        return _run_jobs(grids, folders, jobs, sizes, backend, workers, address, report)
+
+
+def _run_jobs(
+    grids: Sequence[BenchmarkSettings],
+    folders: Sequence[str],
+    jobs: Sequence[Job],
+    sizes: Sequence[int],
+    backend: str,
+    workers: int | None,
+    address: str | None,
+    report: Callable[[RunOutcome, int, int], None] | None,
+) -> list[BenchmarkResult]:
+    """
+    :func:`run_benchmarks` once its grids are checked and their log folders locked: run the jobs, record the
+    invocation and write each grid's tables.
+
+    :param grids: The grids
+    :param folders: Their log folders, normalised
+    :param jobs: Their runs
+    :param sizes: Each grid's number of runs
+    :param backend: ``local`` or ``ray``
+    :param workers: Processes of the local backend (``None``: the number of CPUs)
+    :param address: Ray cluster address (Ray backend)
+    :param report: Called with (outcome, runs done, runs in total) as each run finishes
+    """
     n_workers = workers or os.cpu_count() or 1
     if backend == "local":
         outcomes_iterator: Iterable[RunOutcome] = run_local(jobs, n_workers)

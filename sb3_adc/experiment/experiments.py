@@ -44,6 +44,7 @@ from sb3_adc.experiment.benchmark import (
     RunOutcome,
     run_benchmarks,
 )
+from sb3_adc.experiment.layout import FolderLock
 
 #: Keys of an experiment file and of one of its configurations.
 KEYS = (
@@ -311,11 +312,15 @@ def run_experiment(
     :param tiny: The file's whole pipeline on one seed, one environment and :data:`TINY_TIMESTEPS` steps (100
         bootstrap replications), in a temporary folder: a check that the file runs, not a result
     :return: The runs' outcomes (failed runs included: the tables hold the others)
+    :raises RunLocked: if another invocation is working on the results folder or on one of the run folders'
+        grids (before anything is written there)
     """
     if tiny:
         experiment = dataclasses.replace(experiment, bootstrap_reps=100)
     scratch_folder = tempfile.TemporaryDirectory(prefix=f"{experiment.name}_tiny_") if tiny else contextlib.nullcontext("")
-    with scratch_folder as scratch:
+    # One invocation writes the results folder at a time (a tiny run writes only in its own scratch folder).
+    results_lock = contextlib.nullcontext() if tiny else FolderLock(experiment.results, "running an experiment in it")
+    with results_lock, scratch_folder as scratch:
         runs = os.path.join(scratch, "runs") if scratch else None
         grids = experiment.grids(tiny=tiny, runs=runs)
         start = time.perf_counter()

@@ -6,7 +6,9 @@ since a resumed run is the run an uninterrupted invocation trains (:mod:`sb3_adc
 is a valid way to train it; what it must not lose is the time it took. :class:`InvocationJournal` writes an entry
 per invocation when it starts and keeps it current as runs finish and every ``heartbeat_s`` seconds, so an
 invocation killed without warning leaves its wall time on record to within a heartbeat; :func:`read_invocations`
-gathers the entries of a grid's folders.
+gathers the entries of a grid's folders. The file has one writer: the invocation holding the folder's lock
+(:func:`~sb3_adc.experiment.benchmark.run_benchmarks`); a second invocation fails before it reads or writes it, so
+no entry is ever overwritten by another invocation's copy of the file.
 """
 
 from __future__ import annotations
@@ -75,7 +77,8 @@ class InvocationJournal:
             for folder, algos, runs in grids
         }
         self._start = clock()
-        # The other invocations' entries, read once: a grid folder has one invocation working on it at a time.
+        # The other invocations' entries, read once: a grid folder has one invocation working on it at a time
+        # (run_benchmarks holds the folder's lock around the journal), so no other writer adds one meanwhile.
         self._others: dict[str, list[dict[str, Any]]] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()

@@ -17,17 +17,176 @@ id with ``/`` replaced by ``-``, ``run_id`` counts from 1), holding::
     {env_name}/args.yml                     the run settings (algorithm, seed, budget, evaluation ...)
     {env_name}/vecnormalize.pkl             final VecNormalize statistics (with `normalize`)
     {env_name}/final_evaluation.json        the final evaluation; written last: the run is finished
+    .lock                                   held by the process writing the run (:class:`FolderLock`)
+
+One process writes a run at a time: :func:`~sb3_adc.experiment.training.train` and
+:func:`~sb3_adc.experiment.training.resume` hold the run's :class:`FolderLock` (an OS lock on ``.lock``) for the
+run's whole life, and a second writer gets :class:`RunLocked` before it writes anything. The OS releases the lock
+when its process ends, however it ends (``kill -9`` included), so a crashed run can be resumed at once.
 """
 
 from __future__ import annotations
 
+import errno
 import glob
 import os
 import re
+import sys
+import warnings
 from dataclasses import dataclass
+from types import TracebackType
 
 CHECKPOINT_PREFIX = "rl_model"
 _CHECKPOINT_PATTERN = re.compile(rf"^{CHECKPOINT_PREFIX}_(\d+)_steps\.zip$")
+#: The lock file of a run folder, and of a benchmark's log folder (:class:`FolderLock`).
+LOCK_FILE = ".lock"
+#: Where Windows locks its byte of the lock file: past the holder's PID, which others read.
+_WINDOWS_LOCK_OFFSET = 1 << 20
+
+
+class RunLocked(RuntimeError):
+    """
+    Another process is writing the folder (a user error: exit status 2 at the CLI): two processes training one run
+    at once would interleave their checkpoints, episodes and evaluations.
+
+    :param folder: The locked folder
+    :param pid: The process holding the lock, if it wrote its PID
+    :param activity: What the holder is doing with the folder, e.g. ``"training it"``
+    """
+
+    def __init__(self, folder: str, pid: int | None, activity: str = "training it"):
+        holder = "another process" if pid is None else f"another process (PID {pid})"
+        super().__init__(
+            f"{folder} is in use: {holder} is {activity}. Wait for it to end (or stop it), then run this again; "
+            "a process that died has released the folder already."
+        )
+        self.folder = folder
+        self.pid = pid
+
+
+class FolderLock:
+    """
+    An exclusive OS lock on a folder's :data:`LOCK_FILE`, taken without waiting: ``fcntl.flock`` (``msvcrt.locking``
+    on Windows; no lock, with a warning, where neither exists or the file system refuses locks). The file is
+    created if needed, holds the holder's PID, and is never deleted: the OS releases the lock when the holder
+    closes it or ends, however it ends. One process holding the lock twice counts as two holders. A context
+    manager.
+
+    :param folder: The folder (created if needed)
+    :param activity: What the holder does with the folder, for the error of a second one (see :class:`RunLocked`)
+    """
+
+    def __init__(self, folder: str, activity: str = "training it"):
+        self.folder = folder
+        self.activity = activity
+        self.path = os.path.join(folder, LOCK_FILE)
+        self._fd: int | None = None
+
+    @property
+    def held(self) -> bool:
+        """Whether this object holds the lock (``False`` also where the platform has none)."""
+        return self._fd is not None
+
+    def acquire(self) -> None:
+        """
+        Take the lock, or fail at once.
+
+        :raises RunLocked: if another process (or another :class:`FolderLock` of this one) holds it
+        :raises RuntimeError: if this object holds it already
+        """
+        if self._fd is not None:
+            raise RuntimeError(f"{self.path} is already held by this lock.")
+        os.makedirs(self.folder, exist_ok=True)
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            locked = _try_lock(fd)
+        except BaseException:
+            os.close(fd)
+            raise
+        if locked is None:
+            os.close(fd)
+            return
+        if not locked:
+            os.close(fd)
+            raise RunLocked(self.folder, self.holder_pid(), self.activity)
+        self._fd = fd
+        try:
+            os.lseek(fd, 0, os.SEEK_SET)
+            os.write(fd, f"{os.getpid()}\n".encode())
+            os.ftruncate(fd, len(f"{os.getpid()}\n"))
+        except OSError:
+            pass  # the PID only helps the message of a second writer
+
+    def release(self) -> None:
+        """Release the lock (nothing if this object does not hold it); the file stays."""
+        fd, self._fd = self._fd, None
+        if fd is not None:
+            try:
+                _unlock(fd)
+            finally:
+                os.close(fd)
+
+    def holder_pid(self) -> int | None:
+        """The PID the holder wrote in the lock file (``None`` if unreadable or not written yet)."""
+        try:
+            with open(self.path, encoding="ascii", errors="replace") as stream:
+                text = stream.read(32).strip()
+        except OSError:
+            return None
+        return int(text) if text.isdigit() else None
+
+    def __enter__(self) -> FolderLock:
+        self.acquire()
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, traceback: TracebackType | None
+    ) -> None:
+        self.release()
+
+
+def _try_lock(fd: int) -> bool | None:
+    """
+    Lock an open file without waiting: ``True`` when locked, ``False`` when another holder has it, ``None`` when
+    this platform or file system has no lock (after a warning: the run goes on unprotected, as before).
+    """
+    if sys.platform == "win32":
+        import msvcrt
+
+        os.lseek(fd, _WINDOWS_LOCK_OFFSET, os.SEEK_SET)
+        try:
+            msvcrt.locking(fd, msvcrt.LK_NBLCK, 1)
+        except OSError:
+            return False
+        return True
+    try:
+        import fcntl
+    except ImportError:
+        warnings.warn("this platform has no file locks: nothing stops two processes writing one run.", stacklevel=3)
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    except OSError as error:
+        if error.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS):
+            raise
+        warnings.warn(f"the file system refuses locks ({error}): nothing stops two processes writing one run.", stacklevel=3)
+        return None
+    return True
+
+
+def _unlock(fd: int) -> None:
+    """Release the lock :func:`_try_lock` took (closing the file releases it too, the OS's way after a crash)."""
+    if sys.platform == "win32":
+        import msvcrt
+
+        os.lseek(fd, _WINDOWS_LOCK_OFFSET, os.SEEK_SET)
+        msvcrt.locking(fd, msvcrt.LK_UNLCK, 1)
+        return
+    import fcntl
+
+    fcntl.flock(fd, fcntl.LOCK_UN)
 
 
 class DamagedFileError(ValueError):
@@ -227,3 +386,7 @@ class RunLayout:
     def is_finished(self) -> bool:
         """Whether the run completed (its final evaluation is written last)."""
         return os.path.isfile(self.final_evaluation)
+
+    def lock(self) -> FolderLock:
+        """The run's lock (:class:`FolderLock`, not taken yet): one process writes the run at a time."""
+        return FolderLock(self.run_dir, "training it")

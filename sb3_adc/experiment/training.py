@@ -6,7 +6,11 @@ Training runs in the RL-Zoo log layout, with periodic evaluation, checkpoints, r
 interrupted with Ctrl-C (or SIGTERM, in :func:`sigterm_as_sigint`, as ``sb3-adc`` runs) saves a checkpoint first.
 See :mod:`sb3_adc.experiment.layout` for the files. Both check what they are asked before a folder is written, then
 hand the run to the engine,
-:class:`~sb3_adc.experiment.manager.RunManager` (the RL Zoo's ``ExperimentManager``).
+:class:`~sb3_adc.experiment.manager.RunManager` (the RL Zoo's ``ExperimentManager``). They are the only doors to
+the engine (``sb3-adc train``, the benchmark grids and the tuning trials all go through them), and each holds the
+run's lock (:meth:`~sb3_adc.experiment.layout.RunLayout.lock`) from before it changes the folder until the final
+evaluation is written: a second process on the same run gets
+:class:`~sb3_adc.experiment.layout.RunLocked` at once.
 """
 
 from __future__ import annotations
@@ -112,6 +116,7 @@ def train(settings: TrainSettings, callbacks: Sequence[BaseCallback] = ()) -> Tr
         action space the algorithm cannot act in, or a ``trained_agent`` of another algorithm or for other spaces
         (before anything is written)
     :raises ModelFileError: for a ``trained_agent`` that is not a readable model file (before anything is written)
+    :raises RunLocked: if another process is training in ``settings.run_dir`` (before anything is written)
     :raises RunInterrupted: on Ctrl-C, after saving a checkpoint
     """
     config = load_hyperparams(settings.algo, settings.env_id, settings.conf_file, settings.overrides, settings.n_timesteps)
@@ -121,13 +126,16 @@ def train(settings: TrainSettings, callbacks: Sequence[BaseCallback] = ()) -> Tr
     _check_before_run(settings, config)
     run_dir = settings.run_dir or new_run_dir(settings.log_folder, settings.algo, settings.env_id)
     layout = RunLayout(run_dir, settings.env_id)
-    if os.path.exists(layout.params_dir):
-        raise FileExistsError(f"{run_dir} already holds a run; continue it with resume (sb3-adc train --resume {run_dir}).")
-    print(
-        f"Training {settings.algo} on {settings.env_id} (seed {settings.seed}, {config.n_timesteps} timesteps, "
-        f"hyperparameters from {config.source}) in {run_dir}"
-    )
-    evaluation = RunManager(replace(settings, run_dir=run_dir), config, callbacks=callbacks).run()
+    with layout.lock():  # held for the run's whole life: one writer per run folder
+        if os.path.exists(layout.params_dir):
+            raise FileExistsError(
+                f"{run_dir} already holds a run; continue it with resume (sb3-adc train --resume {run_dir})."
+            )
+        print(
+            f"Training {settings.algo} on {settings.env_id} (seed {settings.seed}, {config.n_timesteps} timesteps, "
+            f"hyperparameters from {config.source}) in {run_dir}"
+        )
+        evaluation = RunManager(replace(settings, run_dir=run_dir), config, callbacks=callbacks).run()
     return TrainResult(run_dir, layout.final_model, evaluation)
 
 
@@ -151,6 +159,7 @@ def resume(
     :param verbose: SB3 verbosity (``None``: as saved)
     :param callbacks: Callbacks called after the run's own, as in :func:`train` (not saved with the run)
     :raises FileNotFoundError: if ``run_dir`` holds no run
+    :raises RunLocked: if another process is training the run (before anything is written)
     :raises RunInterrupted: on Ctrl-C, after saving a checkpoint
     """
     settings = TrainSettings.of_run(run_dir)
@@ -161,6 +170,15 @@ def resume(
         verbose=settings.verbose if verbose is None else verbose,
     )
     layout = RunLayout(run_dir, settings.env_id)
+    with layout.lock():  # held for the run's whole life, taken before anything of the run is read or changed
+        return _resume_locked(layout, settings, n_timesteps, callbacks)
+
+
+def _resume_locked(
+    layout: RunLayout, settings: TrainSettings, n_timesteps: int | None, callbacks: Sequence[BaseCallback]
+) -> TrainResult:
+    """:func:`resume`, under the run's lock."""
+    run_dir = layout.run_dir
     config = resolve_entry(settings.algo, settings.env_id, read_yaml_file(layout.config), layout.config)
     checkpoint = _latest_checkpoint(layout)
     if n_timesteps is not None and n_timesteps != config.n_timesteps:
