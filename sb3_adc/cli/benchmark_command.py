@@ -82,6 +82,18 @@ def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--address", default=None, help="Ray backend: cluster address (default: start a local Ray)")
 
 
+def check_backend_arguments(args: argparse.Namespace) -> None:
+    """
+    Check the options of :func:`add_backend_arguments`: ``--workers`` between 1 and four per CPU.
+
+    :param args: The parsed command line
+    :raises CommandError: for a number of workers out of that range
+    """
+    most = (os.cpu_count() or 1) * 4
+    if args.workers is not None and not 1 <= args.workers <= most:
+        raise CommandError(f"--workers must be between 1 and {most}, got {args.workers}")
+
+
 def run_with_progress(n_runs: int, grid: Callable[[Reporter], Result], name_runs: bool = False) -> Result | None:
     """
     Run ``grid(report)`` behind a progress bar that prints each run as it finishes (and a failed run's traceback).
@@ -129,6 +141,7 @@ def run(args: argparse.Namespace) -> int:
     :return: The exit status (1 if some runs failed)
     """
     apply_runtime_arguments(args)
+    check_backend_arguments(args)
     if args.gym_packages and args.backend == "ray":
         raise CommandError("--gym-packages is not forwarded to Ray workers; register environments in an imported package")
     for env_id in args.envs:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import os
 
-from sb3_adc.cli.benchmark_command import add_backend_arguments, run_with_progress
-from sb3_adc.cli.common import CommandError, apply_runtime_arguments
+from sb3_adc.cli.benchmark_command import add_backend_arguments, check_backend_arguments, run_with_progress
+from sb3_adc.cli.common import apply_runtime_arguments
 from sb3_adc.config import check_env_id
 from sb3_adc.experiment.experiments import read_experiment, run_experiment
 from sb3_adc.experiment.summary import write_report
@@ -56,8 +56,7 @@ def run(args: argparse.Namespace) -> int:
     :return: The exit status (1 if some runs failed)
     """
     apply_runtime_arguments(args)
-    if args.workers is not None and not 1 <= args.workers <= (os.cpu_count() or 1) * 4:
-        raise CommandError(f"--workers must be between 1 and {(os.cpu_count() or 1) * 4}, got {args.workers}")
+    check_backend_arguments(args)
     experiment = read_experiment(args.file)
     for env_id in experiment.envs:
         check_env_id(env_id)

@@ -184,3 +184,12 @@ def test_ctrl_c_exits_130_with_the_resume_message(tmp_path, monkeypatch, capsys)
     monkeypatch.setattr(experiments, "run_benchmarks", ctrl_c)
     assert main(["experiment", str(write(tmp_path, GOOD))]) == 130
     assert "Re-run the same command to continue" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", ["experiment", "benchmark"])
+def test_workers_out_of_range_are_refused_by_both_grid_commands(tmp_path, capsys, command):
+    grid = [str(write(tmp_path, GOOD))] if command == "experiment" else ["--algos", "adc", "--envs", "Pendulum-v1"]
+    assert main([command, *grid, "--workers", "0", *([] if command == "experiment" else ["-f", str(tmp_path / "b")])]) == 2
+    assert "--workers must be between 1 and" in capsys.readouterr().err
+    assert not (tmp_path / "b").exists()
+    assert not (tmp_path / "runs").exists()
