@@ -8,6 +8,7 @@ import os
 import numpy as np
 
 from sb3_adc.cli.common import CommandError, add_algo_argument, add_runtime_arguments, apply_runtime_arguments
+from sb3_adc.common.safe_load import UnsafeModelFileError
 from sb3_adc.experiment.enjoy import MODEL_CHOICES, default_seed, load_model, load_run, model_path, play, write_recording
 from sb3_adc.experiment.layout import env_name, latest_run_dir
 
@@ -57,6 +58,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--gif", metavar="PATH", help="record the first episode as a GIF")
     parser.add_argument("--video", metavar="PATH", help="record the first episode as a video (.mp4; needs imageio-ffmpeg)")
     parser.add_argument("--fps", type=int, default=30, help="frames per second of the recording (default: 30)")
+    parser.add_argument(
+        "--trust-model-file",
+        action="store_true",
+        help="unpickle the model file as SB3 does, which runs any code it holds (default: a safe load that builds "
+        "only known classes and refuses the rest)",
+    )
     add_runtime_arguments(parser)
     parser.set_defaults(handler=run)
 
@@ -88,7 +95,10 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"--fps must be >= 1, got {args.fps}")
     settings, config, layout = load_run(_run_dir(args))
     path, statistics = model_path(layout, args.model)
-    model = load_model(config, path, device=args.device)
+    try:
+        model = load_model(config, path, device=args.device, safe=not args.trust_model_file)
+    except UnsafeModelFileError as error:
+        raise CommandError(f"{error} (with --trust-model-file the file is unpickled: do so only if you trust it)") from error
     seed = default_seed(settings) if args.seed is None else args.seed
     print(f"Playing {path} ({settings.algo} on {settings.env_id}) for {args.n_episodes} episodes, seed {seed}")
     record = args.gif is not None or args.video is not None

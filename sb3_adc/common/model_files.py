@@ -27,6 +27,8 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.save_util import load_from_zip_file, recursive_getattr
 from stable_baselines3.common.type_aliases import GymEnv, TensorDict
 
+from sb3_adc.common.safe_load import UnsafeModelFileError, safe_objects
+
 #: What SB3 (from 2.8) warns in ``_setup_model`` when an off-policy model with ``n_steps > 1`` is given its
 #: ``replay_buffer_class``. A loaded model always is: the file holds the ``NStepReplayBuffer`` and the ``n_steps``
 #: and ``gamma`` SB3 put into ``replay_buffer_kwargs`` when it built the model, so the loaded model does learn
@@ -145,7 +147,7 @@ def model_file_errors(path: str | pathlib.Path | io.BufferedIOBase, algorithm: s
     name = _describe(path)
     try:
         yield
-    except ModelFileError:
+    except (ModelFileError, UnsafeModelFileError):
         raise
     except FileNotFoundError as error:
         if isinstance(path, (str, os.PathLike)) and not os.path.exists(path):
@@ -266,6 +268,7 @@ class CheckedModelFiles(BaseAlgorithm):
         custom_objects: dict[str, Any] | None = None,
         print_system_info: bool = False,
         force_reset: bool = True,
+        safe: bool = False,
         **kwargs: Any,
     ) -> SelfCheckedModelFiles:
         """
@@ -277,10 +280,16 @@ class CheckedModelFiles(BaseAlgorithm):
         :param custom_objects: Dictionary of objects to replace upon loading
         :param print_system_info: Whether to print system info from the saved model
         :param force_reset: Force call to ``reset()`` before training to avoid unexpected behavior
+        :param safe: Run no code from the file (:func:`~sb3_adc.common.safe_load.safe_objects`): its pickled entries
+            are built from an allow-list of classes, and a file that needs anything else is refused with an
+            :class:`~sb3_adc.common.safe_load.UnsafeModelFileError`. Use it for files from anyone you do not trust:
+            without it, loading unpickles the file, which can run any code, as in SB3.
         :param kwargs: extra arguments to change the model when loading
         :return: new model instance with loaded parameters
         """
         with model_file_errors(path, cls.__name__), loading_model():
+            if safe:
+                custom_objects = safe_objects(path, custom_objects)
             custom_objects, kwargs = cls._load_arguments(path, env, custom_objects, kwargs)
             return super().load(
                 path,

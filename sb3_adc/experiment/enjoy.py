@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import zipfile
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -11,6 +12,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
 from sb3_adc.common.model_files import loading_model
+from sb3_adc.common.safe_load import UnsafeModelFileError, safe_objects
 from sb3_adc.config import ExperimentConfig, resolve_entry
 from sb3_adc.config.loader import read_yaml_file
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
@@ -76,17 +78,30 @@ def model_path(layout: RunLayout, which: str) -> tuple[str, str | None]:
     return path, statistics if statistics is not None and os.path.isfile(statistics) else None
 
 
-def load_model(config: ExperimentConfig, path: str, device: str = "auto") -> BaseAlgorithm:
+def load_model(config: ExperimentConfig, path: str, device: str = "auto", safe: bool = True) -> BaseAlgorithm:
     """
     Load a model for prediction only.
 
     :param config: The run's hyperparameters (for the algorithm class)
     :param path: The model zip
     :param device: PyTorch device
+    :param safe: Run no code from the file (:func:`~sb3_adc.common.safe_load.safe_objects`, for any SB3 algorithm);
+        ``False`` unpickles it as SB3 does
+    :raises UnsafeModelFileError: if ``safe`` and the file needs a class outside the safe load's allow-list
     """
     kwargs: dict[str, Any] = {"buffer_size": 1} if issubclass(config.algorithm_class, OffPolicyAlgorithm) else {}
+    custom_objects = None
+    if safe:
+        try:
+            custom_objects = safe_objects(path)
+        except UnsafeModelFileError:
+            raise
+        except (OSError, zipfile.BadZipFile, KeyError, ValueError):
+            # A damaged file: the load below fails on the same entry before it unpickles anything, with the
+            # error that names the file as every load's does.
+            custom_objects = None
     with loading_model():
-        return config.algorithm_class.load(path, device=device, **kwargs)
+        return config.algorithm_class.load(path, device=device, custom_objects=custom_objects, **kwargs)
 
 
 def play(

@@ -8,6 +8,7 @@ import gymnasium as gym
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecFrameStack, VecNormalize
 
+from sb3_adc.common.safe_load import load_vec_normalize
 from sb3_adc.config import ExperimentConfig
 from sb3_adc.experiment.continuation import EpisodeRecorder
 from sb3_adc.experiment.divergence import FiniteCheck
@@ -115,7 +116,7 @@ def wrap_vec_env(config: ExperimentConfig, venv: VecEnv, training: bool, statist
     # Inside VecNormalize: a NaN is caught before it spoils the statistics, and named as the environment gave it.
     venv = FiniteCheck(venv, "training" if training else "evaluation")
     if config.normalize is not None:
-        normalized = VecNormalize.load(statistics, venv) if statistics is not None else VecNormalize(venv, **config.normalize)
+        normalized = load_vec_normalize(statistics, venv) if statistics is not None else VecNormalize(venv, **config.normalize)
         if not training:
             normalized.training = False
             normalized.norm_reward = False

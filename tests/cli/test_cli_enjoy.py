@@ -58,3 +58,39 @@ def test_enjoy_errors(cli, trained_run, args, message):
     status, _, err = cli("enjoy", "-f", trained_run, *args)
     assert status == 2
     assert message in err
+
+
+def test_enjoy_refuses_a_model_file_that_would_run_code(cli, trained_run, tmp_path, monkeypatch):
+    # A copy of the run whose final model carries a pickled payload: enjoy's safe load refuses it (exit 2) without
+    # running it; --trust-model-file unpickles it as SB3 does.
+    import base64
+    import json
+    import os
+    import shutil
+    import zipfile
+
+    import cloudpickle
+
+    class Payload:
+        def __reduce__(self):
+            return (exec, ("import os; os.environ['SB3_ADC_ENJOY_PAYLOAD'] = 'ran'",))
+
+    monkeypatch.delenv("SB3_ADC_ENJOY_PAYLOAD", raising=False)
+    run_dir = tmp_path / "Pendulum-v1_1"
+    shutil.copytree(trained_run / "adc" / "Pendulum-v1_1", run_dir)
+    model = run_dir / "Pendulum-v1.zip"
+    with zipfile.ZipFile(model) as archive:
+        entries = {name: archive.read(name) for name in archive.namelist()}
+    data = json.loads(entries["data"])
+    data["action_noise"] = {":serialized:": base64.b64encode(cloudpickle.dumps(Payload())).decode()}
+    entries["data"] = json.dumps(data).encode()
+    with zipfile.ZipFile(model, "w") as archive:
+        for name, content in entries.items():
+            archive.writestr(name, content)
+    status, _, err = cli("enjoy", "--run-dir", run_dir, "-n", 1)
+    assert status == 2
+    assert "`action_noise` needs `builtins.exec`" in err
+    assert "SB3_ADC_ENJOY_PAYLOAD" not in os.environ
+    status, _, _ = cli("enjoy", "--run-dir", run_dir, "-n", 1, "--trust-model-file")
+    assert status == 0
+    assert os.environ.get("SB3_ADC_ENJOY_PAYLOAD") == "ran"
