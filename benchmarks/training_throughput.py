@@ -14,6 +14,16 @@ Usage::
     python benchmarks/training_throughput.py --quick    # a smoke run
     python benchmarks/training_throughput.py --n-intervals 20 60 100 140 --designs paper legendre
                                                         # the paper's setting at each interval count
+    python benchmarks/training_throughput.py --fast-update --steps 2000 --warmup 500 --clock cpu
+                                                        # ADC's fast update path against its plain path and
+                                                        # SB3's TD3 and DDPG; writes training_throughput_fast.*
+
+The ``--fast-update`` mode times ADC with ``fast_update=True`` (the default) and ``False`` against SB3's TD3 and
+DDPG with the update settings of the lidar ``-v1`` entries (``sb3_adc/LidarObstacleCourse-v1`` in
+``hyperparams/adc.yml``: twin critics, policy delay 2, target smoothing, 3-step returns, ``tau=0.01``; ADC with its
+averaged actor), at the entries' networks and batch and at two larger ones. TD3 gets the same settings (its
+defaults, plus ``n_steps=3``); DDPG is SB3's (one critic, no delay, no smoothing) with the same networks, batch
+and ``n_steps``.
 """
 
 from __future__ import annotations
@@ -35,7 +45,7 @@ import gymnasium as gym
 import numpy as np
 import stable_baselines3
 import torch as th
-from stable_baselines3 import DDPG
+from stable_baselines3 import DDPG, TD3
 from stable_baselines3.common.base_class import BaseAlgorithm
 
 import sb3_adc
@@ -91,6 +101,73 @@ def make_model(model: str, setting: Setting, env_id: str, seed: int) -> BaseAlgo
     return ADC("MlpPolicy", env, policy_kwargs=policy_kwargs, **common)
 
 
+#: The models of ``--fast-update``.
+FAST_MODELS = ["ADC fast", "ADC plain", "TD3", "DDPG"]
+
+
+@dataclass(frozen=True)
+class FastSetting:
+    """One network size at which ``--fast-update`` times every model."""
+
+    name: str
+    actor_arch: list[int]
+    #: ADC's critic trunk; TD3's and DDPG's critic hidden layers are the trunk and then ``head_arch``
+    critic_arch: list[int]
+    #: ADC's value and advantage heads' hidden layers (the shipped ``-v1`` nets: ``[20]``)
+    head_arch: list[int]
+    batch_size: int
+
+
+FAST_SETTINGS = [
+    FastSetting("shipped -v1 nets (pi 100-20, qf 100 + heads 20), batch 64", [100, 20], [100], [20], 64),
+    FastSetting("64-64 nets, batch 256", [64, 64], [64, 64], [], 256),
+    FastSetting("256-256 nets, batch 256", [256, 256], [256, 256], [], 256),
+]
+
+
+def make_fast_model(model: str, setting: FastSetting, env_id: str, seed: int) -> BaseAlgorithm:
+    """A model of ``--fast-update``: the ``-v1`` entries' update settings (see the module's docstring)."""
+    common: dict[str, Any] = dict(
+        learning_rate=1e-3,
+        buffer_size=100_000,
+        learning_starts=setting.batch_size,
+        batch_size=setting.batch_size,
+        tau=0.01,
+        gamma=0.98,
+        train_freq=1,
+        gradient_steps=1,
+        n_steps=3,
+        seed=seed,
+        device="cpu",
+    )
+    env = gym.make(env_id)
+    critic_layers = [*setting.critic_arch, *setting.head_arch]
+    baseline_arch = dict(pi=setting.actor_arch, qf=critic_layers)
+    if model == "TD3":
+        return TD3("MlpPolicy", env, policy_kwargs=dict(net_arch=baseline_arch), **common)
+    if model == "DDPG":
+        return DDPG("MlpPolicy", env, policy_kwargs=dict(net_arch=baseline_arch), **common)
+    policy_kwargs = dict(
+        net_arch=dict(pi=setting.actor_arch, qf=setting.critic_arch),
+        value_net_arch=setting.head_arch,
+        advantage_net_arch=setting.head_arch,
+        n_critics=2,
+        n_intervals=100,
+        actor_average_tau=1e-4,
+    )
+    return ADC(
+        "MlpPolicy",
+        env,
+        critic_learning_rate=1e-3,
+        policy_delay=2,
+        target_policy_noise=0.2,
+        target_noise_clip=0.5,
+        fast_update=model == "ADC fast",
+        policy_kwargs=policy_kwargs,
+        **common,
+    )
+
+
 CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.process_time}
 
 
@@ -130,6 +207,73 @@ def run(
                 row[f"{model}_over_ddpg"] = round(median / ddpg, 3)
         rows.append(row)
     return rows
+
+
+def run_fast(
+    env_id: str, steps: int, warmup: int, repeats: int, clock: Callable[[], float], settings: list[FastSetting]
+) -> list[dict[str, Any]]:
+    """Time :data:`FAST_MODELS` at each setting, in a rotating order; the median and the range over the repeats."""
+    rows = []
+    for setting in settings:
+        timings: dict[str, list[float]] = {model: [] for model in FAST_MODELS}
+        for repeat in range(repeats):
+            shift = repeat % len(FAST_MODELS)
+            for model in FAST_MODELS[shift:] + FAST_MODELS[:shift]:
+                speed = time_training(partial(make_fast_model, model, setting, env_id, repeat), steps, warmup, clock)
+                timings[model].append(speed)
+                print(f"  {setting.name:<58} {model:<10} repeat {repeat}: {speed:8.1f} steps/s", flush=True)
+        td3 = statistics.median(timings["TD3"])
+        row: dict[str, Any] = dict(setting=setting.name, **asdict(setting))
+        for model in FAST_MODELS:
+            key = model.replace(" ", "_")
+            row[f"{key}_steps_per_s"] = round(statistics.median(timings[model]), 1)
+            row[f"{key}_runs"] = [round(x, 1) for x in timings[model]]
+            row[f"{key}_over_td3"] = round(statistics.median(timings[model]) / td3, 3)
+        rows.append(row)
+    return rows
+
+
+def fast_cells(rows: list[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
+    """The ``--fast-update`` table's header and rows: median steps/s [min-max over the repeats] (ratio to TD3's)."""
+    labels = {"ADC fast": "ADC fast_update", "ADC plain": "ADC plain", "TD3": "SB3 TD3", "DDPG": "SB3 DDPG"}
+    header = ["setting", *(f"{labels[m]} steps/s (/ TD3)" for m in FAST_MODELS), "ADC fast / plain"]
+    body = []
+    for r in rows:
+        cells = [r["setting"]]
+        for model in FAST_MODELS:
+            key = model.replace(" ", "_")
+            runs = r[f"{key}_runs"]
+            cells.append(f"{r[f'{key}_steps_per_s']:.0f} [{min(runs):.0f}-{max(runs):.0f}] ({r[f'{key}_over_td3']:.2f})")
+        cells.append(f"{r['ADC_fast_steps_per_s'] / r['ADC_plain_steps_per_s']:.2f}")
+        body.append(cells)
+    return header, body
+
+
+def fast_table(rows: list[dict[str, Any]]) -> str:
+    """The ``--fast-update`` table in Markdown (printed, and written to ``training_throughput_fast.md``)."""
+    header, body = fast_cells(rows)
+    lines = ["| " + " | ".join(header) + " |", "|---|" + "---:|" * (len(header) - 1)]
+    lines += ["| " + " | ".join(cells) + " |" for cells in body]
+    table = "\n".join(lines)
+    print(table)
+    return table
+
+
+def write_fast(result: dict[str, Any], output: Path) -> None:
+    """Write ``training_throughput_fast.{md,csv}`` from the results' JSON (``result``)."""
+    stem = "training_throughput_fast"
+    note = (
+        f"\n{result['env']}, {result['timed_steps']} timed environment steps after {result['warmup_steps']}, one gradient "
+        f"step per step, {result['repeats']} repeats in a rotating order, {result['torch_threads']} torch thread(s), "
+        f"{result['clock']} clock, torch {result['versions']['torch']}; median steps/s [min-max] (ratio of medians to "
+        "SB3 TD3).\n"
+    )
+    (output / f"{stem}.md").write_text(fast_table(result["rows"]) + "\n" + note)
+    header, body = fast_cells(result["rows"])
+    with (output / f"{stem}.csv").open("w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(header)
+        writer.writerows(body)
 
 
 def _label(model: str) -> str:
@@ -239,11 +383,27 @@ def main() -> None:
         help="time the paper's Pendulum setting (30 units, batch 32) at each of these interval counts instead of the "
         "network sizes; writes training_throughput_intervals.*",
     )
+    parser.add_argument(
+        "--fast-update",
+        action="store_true",
+        help="time ADC's fast update path against its plain path, SB3 TD3 and SB3 DDPG with the -v1 update "
+        "settings; writes training_throughput_fast.*",
+    )
     parser.add_argument("--quick", action="store_true", help="a short smoke run; writes nothing")
-    parser.add_argument("--replot", action="store_true", help="redraw the figure from the results' JSON, without timing")
+    parser.add_argument(
+        "--replot",
+        action="store_true",
+        help="redraw the figure from the results' JSON, without timing (with --fast-update: rewrite its .md and .csv)",
+    )
     parser.add_argument("--output", type=Path, default=RESULTS_DIR, help="results folder (default: benchmarks/results)")
     args = parser.parse_args()
 
+    if args.fast_update:
+        if args.replot:
+            write_fast(json.loads((args.output / "training_throughput_fast.json").read_text()), args.output)
+            return
+        main_fast(args)
+        return
     stem = "training_throughput_intervals" if args.n_intervals else "training_throughput"
     if args.replot:
         saved = json.loads((args.output / f"{stem}.json").read_text())
@@ -290,6 +450,38 @@ def main() -> None:
     write_csv(rows, models, args.output / f"{stem}.csv")
     plot(rows, models, args.output / f"{stem}.png")
     print(f"wrote {args.output}/{stem}.{{json,md,csv,png}}")
+
+
+def main_fast(args: argparse.Namespace) -> None:
+    """The ``--fast-update`` mode: time, print the table, write ``training_throughput_fast.{json,md,csv}``."""
+    th.set_num_threads(args.threads)
+    steps, warmup, repeats = (300, 300, 1) if args.quick else (args.steps, args.warmup, args.repeats)
+    print(f"Fast update on {args.env}: {steps} timed steps after {warmup}, {repeats} repeats, {args.clock} clock")
+    settings = FAST_SETTINGS[:1] if args.quick else FAST_SETTINGS
+    rows = run_fast(args.env, steps, warmup, repeats, CLOCKS[args.clock], settings)
+    if args.quick:
+        fast_table(rows)
+        return
+    stem = "training_throughput_fast"
+    args.output.mkdir(parents=True, exist_ok=True)
+    result = dict(
+        benchmark="training_throughput --fast-update",
+        env=args.env,
+        timed_steps=steps,
+        warmup_steps=warmup,
+        repeats=repeats,
+        torch_threads=args.threads,
+        clock=args.clock,
+        models=FAST_MODELS,
+        machine=dict(
+            processor=platform.processor() or platform.machine(), cpu_count=os.cpu_count(), python=platform.python_version()
+        ),
+        versions=dict(sb3_adc=sb3_adc.__version__, stable_baselines3=stable_baselines3.__version__, torch=th.__version__),
+        rows=rows,
+    )
+    (args.output / f"{stem}.json").write_text(json.dumps(result, indent=2) + "\n")
+    write_fast(result, args.output)
+    print(f"wrote {args.output}/{stem}.{{json,md,csv}}")
 
 
 if __name__ == "__main__":

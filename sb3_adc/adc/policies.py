@@ -21,6 +21,7 @@ from torch.nn import functional as F
 from sb3_adc.adc.designs import ActionAdvantageNetwork, LegendreAdvantageNetwork, StateValueIntervalNetwork
 from sb3_adc.adc.intervals import Aggregation, Interpolation, UniformIntervalPartition, aggregate, validate_interval_options
 from sb3_adc.common.actor_average import ActorAverageTD3Policy
+from sb3_adc.common.fast_update import fast_optimizer_kwargs
 from sb3_adc.common.spaces import check_action_space
 
 #: Multiply-accumulates (batch x trunk width x advantage outputs) from which a single-layer advantage stream reads
@@ -469,7 +470,10 @@ class ADCPolicy(ActorAverageTD3Policy):
     :param features_extractor_kwargs: Keyword arguments to pass to the features extractor.
     :param normalize_images: Whether to normalize images or not, dividing by 255.0 (True by default)
     :param optimizer_class: The optimizer to use, ``th.optim.Adam`` by default
-    :param optimizer_kwargs: Additional keyword arguments, excluding the learning rate, to pass to the optimizer
+    :param optimizer_kwargs: Additional keyword arguments, excluding the learning rate, to pass to the optimizer;
+        with Adam or AdamW and neither ``fused`` nor ``foreach`` given, ``fused=True`` is added (one kernel for all
+        parameter tensors instead of SB3's per-tensor loop on the CPU, the same update up to float rounding; see
+        :mod:`sb3_adc.common.fast_update`; ADC's ``fast_update=False`` trains with SB3's loop whatever this says)
     :param n_critics: Number of dueling critic networks (1 in the paper)
     :param share_features_extractor: Whether to share or not the features extractor between the actor and
         the critic (this saves computation time)
@@ -539,7 +543,8 @@ class ADCPolicy(ActorAverageTD3Policy):
             features_extractor_kwargs=features_extractor_kwargs,
             normalize_images=normalize_images,
             optimizer_class=optimizer_class,
-            optimizer_kwargs=optimizer_kwargs,
+            # A default of the fast update path, which the caller's explicit `fused` or `foreach` overrides.
+            optimizer_kwargs=fast_optimizer_kwargs(optimizer_class, optimizer_kwargs),
             n_critics=n_critics,
             share_features_extractor=share_features_extractor,
             actor_average_tau=actor_average_tau,

@@ -25,6 +25,8 @@ from stable_baselines3.td3.policies import Actor, CnnPolicy, MultiInputPolicy, T
 from stable_baselines3.td3.td3 import TD3
 from torch import nn
 
+from sb3_adc.common.fast_update import foreach_polyak_update
+
 
 def check_actor_average_tau(actor_average_tau: object) -> None:
     """
@@ -145,20 +147,34 @@ class ActorAverageTD3Policy(TD3Policy):
         SB3's ``TD3Policy.set_training_mode`` (the actor and the critics; the targets and the average stay in
         evaluation mode), skipped when they are in that mode already: SB3 calls it three times per environment step
         (collecting, predicting, training), and ``nn.Module.train`` walks every submodule through
-        ``nn.Module.__setattr__``, a noticeable share of a training step with small networks.
+        ``nn.Module.__setattr__``, a noticeable share of a training step with small networks. When the mode does
+        change, the flag is written straight into the submodules' ``__dict__`` (where ``nn.Module`` keeps it), unless
+        one of them overrides ``train``.
 
         :param mode: Training mode (``True``) or evaluation mode
         """
         if self.training == mode and self.actor.training == mode and self.critic.training == mode:
             return
-        super().set_training_mode(mode)
+        cached = self.__dict__.get("_mode_modules")
+        if cached is None or cached[0] is not self.actor or cached[1] is not self.critic:
+            modules = [*self.actor.modules(), *self.critic.modules()]
+            plain = all(type(module).train is nn.Module.train for module in modules)
+            cached = (self.actor, self.critic, modules if plain else None)
+            # Not an attribute of the module tree (a list, not a Module): state dict and pickling are unchanged.
+            self.__dict__["_mode_modules"] = cached
+        if cached[2] is None:
+            super().set_training_mode(mode)
+            return
+        for module in cached[2]:
+            module.__dict__["training"] = mode
+        self.training = mode
 
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
         if deterministic and self.actor_average is not None:
             return self.actor_average(observation)
         return self.actor(observation)
 
-    def update_actor_average(self, n_actor_updates: int, n_new: int = 1) -> None:
+    def update_actor_average(self, n_actor_updates: int, n_new: int = 1, foreach: bool = False) -> None:
         """
         Move the averaged actor towards the actor after an actor update, by :func:`actor_average_weight` (nothing
         without an average).
@@ -166,11 +182,16 @@ class ActorAverageTD3Policy(TD3Policy):
         :param n_actor_updates: Actor updates since training began, the newest included (the count is saved with
             the model, so that a resumed run goes on with the same weights)
         :param n_new: Actor updates since the last call
+        :param foreach: Update all the tensors in one call (:func:`~sb3_adc.common.fast_update.foreach_polyak_update`,
+            the same update up to float rounding) rather than with SB3's ``polyak_update``
         """
         if self._average_parameters is None:
             return
         weight = actor_average_weight(self.actor_average_tau, n_actor_updates, n_new)
-        polyak_update(*self._average_parameters, weight)
+        if foreach:
+            foreach_polyak_update(*self._average_parameters, weight)
+        else:
+            polyak_update(*self._average_parameters, weight)
 
     def drop_actor_average(self) -> bool:
         """
