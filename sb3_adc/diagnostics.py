@@ -1,20 +1,11 @@
 """
 Critic diagnostics for any TD3-family model (:class:`~sb3_adc.ADC`, SB3's TD3 and DDPG,
-:class:`~sb3_adc.baselines.SplitRateDDPG`): what the critic believes against what the policy earns, how strongly
-the critic pushes the actor, and, for ADC's dueling interval critic, how its intervals are visited and how smooth
-its advantage is across them.
-
-- :func:`evaluate_critic`: the critic's estimation bias ``Q(s_t, a_t) - G_t`` against the discounted Monte-Carlo
-  returns of deterministic evaluation rollouts (as in the over-estimation figure of the TD3 paper, Fujimoto et
-  al., 2018);
-- :func:`gradient_norms`: on a replay batch, the norm of the actor-loss gradient and of ``dQ/da`` at ``a = mu(s)``;
-- :func:`interval_visits` and :func:`advantage_roughness`: ADC only, the visit count of each interval in the
-  replay buffer's actions and the advantage's roughness across neighbouring intervals;
-- :class:`CriticDiagnosticsCallback` logs them during training (``eval/...`` and ``train/...`` keys), keeps their
-  history and writes it (:func:`save_history`, :func:`load_history`);
-- :func:`plot_diagnostics` draws the histories of several models (it needs the ``experiment`` extra).
-
-See the user guide's page on diagnostics for how to read each key.
+:class:`~sb3_adc.baselines.SplitRateDDPG`): the critic's estimation bias against discounted Monte-Carlo returns
+(:func:`evaluate_critic`, the TD3 paper's over-estimation measure), how strongly it pushes the actor
+(:func:`gradient_norms`) and, for ADC's dueling interval critic, its interval visits and the advantage's
+roughness across intervals (:func:`interval_visits`, :func:`advantage_roughness`). :class:`CriticDiagnosticsCallback`
+logs them during training and keeps their history (:func:`save_history`, :func:`load_history`);
+:func:`plot_diagnostics` draws several models' histories (``experiment`` extra). See the user guide's page.
 """
 
 from __future__ import annotations
@@ -91,12 +82,10 @@ def discounted_returns(rewards: np.ndarray, gamma: float) -> np.ndarray:
     :param gamma: Discount factor
     :return: ``(T,)``
     """
-    returns = np.zeros(len(rewards), dtype=np.float64)
-    running = 0.0
+    returns = np.zeros(len(rewards) + 1, dtype=np.float64)
     for step in range(len(rewards) - 1, -1, -1):
-        running = float(rewards[step]) + gamma * running
-        returns[step] = running
-    return returns
+        returns[step] = float(rewards[step]) + gamma * returns[step + 1]
+    return returns[:-1]
 
 
 def truncation_weights(length: int, gamma: float, truncated: bool) -> np.ndarray:
@@ -126,15 +115,11 @@ def _check_positive_int(name: str, value: object) -> None:
         raise ValueError(f"`{name}` must be an integer >= 1, got {value!r}")
 
 
-def _check_evaluation_options(n_eval_episodes: object, truncation_tolerance: object) -> None:
+def _check_evaluation_options(n_eval_episodes: object, tolerance: object) -> None:
     """Raise ``ValueError`` naming the option of :func:`evaluate_critic` that is invalid."""
     _check_positive_int("n_eval_episodes", n_eval_episodes)
-    if (
-        isinstance(truncation_tolerance, bool)
-        or not isinstance(truncation_tolerance, (int, float))
-        or not 0 < truncation_tolerance <= 1
-    ):
-        raise ValueError(f"`truncation_tolerance` must be a number in (0, 1], got {truncation_tolerance!r}")
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not 0 < tolerance <= 1:
+        raise ValueError(f"`truncation_tolerance` must be a number in (0, 1], got {tolerance!r}")
 
 
 def evaluate_critic(
@@ -179,25 +164,14 @@ def evaluate_critic(
         # evaluate_policy calls this for each env ``i`` after each step, before it moves on to the next observation.
         index = local_vars["i"]
         observations = local_vars["observations"]
-        obs = (
-            {key: value[index] for key, value in observations.items()}
-            if isinstance(observations, dict)
-            else observations[index]
-        )
+        obs = {key: value[index] for key, value in observations.items()} if isinstance(observations, dict) else None
+        obs = observations[index] if obs is None else obs
         current[index].append((obs, np.asarray(local_vars["actions"][index]), float(local_vars["reward"])))
         if local_vars["done"]:
             episodes.append((current[index], bool(local_vars["info"].get("TimeLimit.truncated", False))))
             current[index] = []
 
-    evaluate_policy(
-        model,
-        env,
-        n_eval_episodes=n_eval_episodes,
-        deterministic=True,
-        callback=record_step,
-        warn=False,
-        return_episode_rewards=True,
-    )
+    evaluate_policy(model, env, n_eval_episodes, deterministic=True, callback=record_step, warn=False)
     q_values, mc_returns, weights = [], [], []
     for steps, truncated in episodes:
         observations = _stack_observations([obs for obs, _, _ in steps])
@@ -245,10 +219,7 @@ def gradient_norms(model: BaseAlgorithm, observations: PyTorchObs) -> dict[str, 
         actions = actor(observations).detach().requires_grad_(True)
         (dq_da,) = th.autograd.grad(critic.q1_forward(observations, actions).sum(), [actions])
     squared = sum(float(grad.pow(2).sum()) for grad in actor_grads if grad is not None)
-    return {
-        "train/actor_grad_norm": math.sqrt(squared),
-        "train/dq_da_norm": float(dq_da.norm(dim=1).mean()),
-    }
+    return {"train/actor_grad_norm": math.sqrt(squared), "train/dq_da_norm": float(dq_da.norm(dim=1).mean())}
 
 
 def interval_visits(model: BaseAlgorithm) -> np.ndarray:
@@ -411,10 +382,7 @@ class CriticDiagnosticsCallback(BaseCallback):
 
 
 def _scalar_keys(history: History) -> list[str]:
-    keys: list[str] = []
-    for record in history:
-        keys += [key for key in record if key != "timesteps" and key not in ARRAY_KEYS and key not in keys]
-    return keys
+    return list(dict.fromkeys(key for record in history for key in record if key != "timesteps" and key not in ARRAY_KEYS))
 
 
 def save_history(history: History, folder: str) -> tuple[str, str]:
@@ -433,24 +401,22 @@ def save_history(history: History, folder: str) -> tuple[str, str]:
     os.makedirs(folder, exist_ok=True)
     keys = _scalar_keys(history)
     arrays: dict[str, Any] = {"timesteps": np.array([record["timesteps"] for record in history], dtype=np.int64)}
-    for key in keys:
-        arrays[key] = np.array([record.get(key, np.nan) for record in history], dtype=np.float64)
+    arrays.update({key: np.array([record.get(key, np.nan) for record in history], dtype=np.float64) for key in keys})
     for key in ARRAY_KEYS:
-        with_key = [record for record in history if key in record]
-        if with_key:
-            arrays[key] = np.stack([record[key] for record in with_key])
-            arrays[f"{key}_timesteps"] = np.array([record["timesteps"] for record in with_key], dtype=np.int64)
-            arrays[f"{key}_records"] = np.array(
-                [index for index, record in enumerate(history) if key in record], dtype=np.int64
-            )
+        indices = [index for index, record in enumerate(history) if key in record]
+        if indices:
+            arrays[key] = np.stack([history[index][key] for index in indices])
+            arrays[f"{key}_timesteps"] = arrays["timesteps"][indices]
+            arrays[f"{key}_records"] = np.array(indices, dtype=np.int64)
     npz_path, csv_path = os.path.join(folder, HISTORY_NPZ), os.path.join(folder, HISTORY_CSV)
     write_atomically(npz_path, lambda stream: np.savez(stream, **arrays), binary=True)
 
     def write_csv(stream: IO[Any]) -> None:
         writer = csv.writer(stream)
         writer.writerow(["timesteps", *keys])
-        for index in range(len(history)):
-            writer.writerow([int(arrays["timesteps"][index]), *(repr(float(arrays[key][index])) for key in keys)])
+        writer.writerows(
+            [int(step), *(repr(float(arrays[key][i])) for key in keys)] for i, step in enumerate(arrays["timesteps"])
+        )
 
     write_atomically(csv_path, write_csv)
     return npz_path, csv_path
@@ -467,16 +433,13 @@ def load_history(path: str) -> History:
         path = os.path.join(path, HISTORY_NPZ)
     with np.load(path) as data:
         arrays = {key: data[key] for key in data.files}
-    timesteps = arrays.pop("timesteps")
-    history: History = [{"timesteps": int(step)} for step in timesteps]
-    array_records = {key: arrays.pop(f"{key}_records") for key in ARRAY_KEYS if key in arrays}
-    for key in array_records:
-        arrays.pop(f"{key}_timesteps")
+    history: History = [{"timesteps": int(step)} for step in arrays["timesteps"]]
+    bookkeeping = {"timesteps", *(f"{key}_{part}" for key in ARRAY_KEYS for part in ("records", "timesteps"))}
     for key, values in arrays.items():
         if key in ARRAY_KEYS:
-            for index, value in zip(array_records[key], values, strict=True):
+            for index, value in zip(arrays[f"{key}_records"], values, strict=True):
                 history[int(index)][key] = value
-        else:
+        elif key not in bookkeeping:
             for record, value in zip(history, values, strict=True):
                 if not np.isnan(value):
                     record[key] = float(value)
@@ -523,69 +486,68 @@ def plot_diagnostics(
     from sb3_adc.experiment.statistics import learning_curves
 
     runs_by_label = {label: _runs(value) for label, value in histories.items()}
-    interval_labels = [label for label, runs in runs_by_label.items() if _last_array(runs, INTERVAL_VISITS_KEY) is not None]
-    n_panels = 4 if interval_labels else 2
-    figure = Figure(figsize=(6.4 * 2, 4.0 * (n_panels // 2)), layout="constrained")
-    axes = list(figure.subplots(n_panels // 2, 2, squeeze=False).flat)
     colors = {label: f"C{index % 10}" for index, label in enumerate(runs_by_label)}
-
+    with_intervals = [label for label, runs in runs_by_label.items() if _last_array(runs, INTERVAL_VISITS_KEY) is not None]
+    n_rows = 2 if with_intervals else 1
+    figure = Figure(figsize=(6.4 * 2, 4.0 * n_rows), layout="constrained")
+    axes = list(figure.subplots(n_rows, 2, squeeze=False).flat)
     curve_panels = (
-        (axes[0], "eval/critic_bias", "critic bias Q - G (return units)", "Critic bias on evaluation rollouts"),
-        (axes[1], "train/actor_grad_norm", "actor-loss gradient norm (L2)", "Actor-gradient norm on replay batches"),
+        ("eval/critic_bias", "critic bias Q - G (return units)", "Critic bias on evaluation rollouts"),
+        ("train/actor_grad_norm", "actor-loss gradient norm (L2)", "Actor-gradient norm on replay batches"),
     )
-    for ax, key, ylabel, panel_title in curve_panels:
+    for ax, (key, ylabel, panel_title) in zip(axes[:2], curve_panels, strict=True):
         for label, runs in runs_by_label.items():
             rows = [
-                {"env": key, "algo": label, "seed": run_index, "timesteps": record["timesteps"], "mean_return": record[key]}
-                for run_index, run in enumerate(runs)
+                {"env": key, "algo": label, "seed": seed, "timesteps": record["timesteps"], "mean_return": record[key]}
+                for seed, run in enumerate(runs)
                 for record in run
                 if key in record
             ]
-            if not rows:
-                continue
-            curves = learning_curves(pd.DataFrame(rows), reps=reps)
-            n_runs = int(curves["n_runs"].iloc[0])
-            ax.plot(
-                curves["timesteps"], curves["mean"], color=colors[label], label=f"{label} ({n_runs} run{'s' * (n_runs > 1)})"
-            )
-            if n_runs > 1:
-                ax.fill_between(
-                    curves["timesteps"], curves["mean_ci_low"], curves["mean_ci_high"], color=colors[label], alpha=0.2
+            if rows:
+                curves = learning_curves(pd.DataFrame(rows), reps=reps)
+                n_runs = int(curves["n_runs"].iloc[0])
+                ax.plot(
+                    curves["timesteps"],
+                    curves["mean"],
+                    color=colors[label],
+                    label=f"{label} ({n_runs} run{'s' * (n_runs > 1)})",
                 )
+                if n_runs > 1:
+                    ax.fill_between(
+                        curves["timesteps"], curves["mean_ci_low"], curves["mean_ci_high"], color=colors[label], alpha=0.2
+                    )
         if key == "eval/critic_bias":
             ax.axhline(0.0, color="black", linewidth=0.8, linestyle=":")
         ax.set(title=panel_title, xlabel="timesteps", ylabel=ylabel)
-        ax.grid(alpha=0.3)
-        if ax.has_data():
-            ax.legend(fontsize="small")
 
-    if interval_labels:
-        visits_ax, profile_ax = axes[2], axes[3]
-        for label in interval_labels:
-            runs = runs_by_label[label]
-            counts = _last_array(runs, INTERVAL_VISITS_KEY)
-            assert counts is not None
-            fraction = (counts / counts.sum(axis=-1, keepdims=True)).mean(axis=0)
-            n_intervals = fraction.shape[-1]
-            centres = -1.0 + (2.0 * np.arange(n_intervals) + 1.0) / n_intervals
-            visits_ax.step(centres, fraction, where="mid", color=colors[label], label=f"{label} ({n_intervals} intervals)")
-            visits_ax.axhline(1.0 / n_intervals, color=colors[label], linewidth=0.8, linestyle=":")
-            profile = _last_array(runs, ADVANTAGE_PROFILE_KEY)
-            if profile is not None:
-                profile_centres = -1.0 + (2.0 * np.arange(profile.shape[-1]) + 1.0) / profile.shape[-1]
-                profile_ax.plot(profile_centres, profile.mean(axis=0), color=colors[label], label=label)
-        visits_ax.set(
-            title="Replay-buffer actions per interval (last record; dotted: uniform)",
-            xlabel="scaled action, interval centre",
-            ylabel="fraction of stored actions",
+    def centres(n_intervals: int) -> np.ndarray:
+        return -1.0 + (2.0 * np.arange(n_intervals) + 1.0) / n_intervals
+
+    for label in with_intervals:
+        counts = _last_array(runs_by_label[label], INTERVAL_VISITS_KEY)
+        assert counts is not None
+        fraction = (counts / counts.sum(axis=-1, keepdims=True)).mean(axis=0)
+        n_intervals = fraction.shape[-1]
+        axes[2].step(
+            centres(n_intervals), fraction, where="mid", color=colors[label], label=f"{label} ({n_intervals} intervals)"
         )
-        profile_ax.set(
+        axes[2].axhline(1.0 / n_intervals, color=colors[label], linewidth=0.8, linestyle=":")
+        profile = _last_array(runs_by_label[label], ADVANTAGE_PROFILE_KEY)
+        if profile is not None:
+            axes[3].plot(centres(profile.shape[-1]), profile.mean(axis=0), color=colors[label], label=label)
+    if with_intervals:
+        axes[2].set(
+            title="Replay-buffer actions per interval (last record; dotted: uniform)", ylabel="fraction of stored actions"
+        )
+        axes[3].set(
             title="Advantage across intervals (last record, replay-batch mean)",
-            xlabel="scaled action, interval centre",
             ylabel="A(s, z) - mean_z A(s, z) (return units)",
         )
-        for ax in (visits_ax, profile_ax):
-            ax.grid(alpha=0.3)
+        for ax in axes[2:]:
+            ax.set_xlabel("scaled action, interval centre")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        if ax.has_data():
             ax.legend(fontsize="small")
     figure.suptitle(title or "Critic diagnostics", fontsize="medium")
     figure.savefig(path, dpi=120)

@@ -94,31 +94,21 @@ def run_tuning(args: argparse.Namespace) -> int:
         if not os.path.isfile(args.search_space):
             raise CommandError(f"--search-space: no file {args.search_space}")
         search_space = read_yaml_file(args.search_space)
+    # The options named as TuneSettings' fields.
+    same = "n_trials n_timesteps sampler pruner n_startup_trials n_evaluations eval_episodes final_eval_episodes n_jobs"
+    same += " storage study_name sampler_seed conf_file objective"
     settings = TuneSettings(
         algo=args.algo,
         env_id=args.env,
-        n_trials=args.n_trials,
-        n_timesteps=args.n_timesteps,
         seeds=tuple(seeds),
-        sampler=args.sampler,
-        pruner=args.pruner,
-        n_startup_trials=args.n_startup_trials,
-        n_evaluations=args.n_evaluations,
-        eval_episodes=args.eval_episodes,
-        final_eval_episodes=args.final_eval_episodes,
-        n_jobs=args.n_jobs,
-        storage=args.storage,
-        study_name=args.study_name,
-        sampler_seed=args.sampler_seed,
-        conf_file=args.conf_file,
         overrides=key_values(args.hyperparams, "-params"),
         env_kwargs=key_values(args.env_kwargs, "--env-kwargs"),
         eval_env_kwargs=key_values(args.eval_env_kwargs, "--eval-env-kwargs"),
-        objective=args.objective,
         search_space=search_space,
         log_folder=args.log_folder,
         device=args.device,
         verbose=args.verbose,
+        **{name: getattr(args, name) for name in same.split()},
     )
     tune(settings)
     return 0

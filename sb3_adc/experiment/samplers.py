@@ -4,9 +4,9 @@ Optuna search spaces of the algorithms that ``sb3-adc train -optimize`` tunes.
 Each sampler draws hyperparameters from an Optuna trial and returns them as overrides of the algorithm's entry
 (the same ``key: value`` pairs as ``-params``), so a trial runs through the same engine, validation and log
 layout as any other run. The spaces follow the RL Zoo's ``rl_zoo3/hyperparams_opt.py`` for the keys the
-algorithms share (written here rather than imported: the Zoo's samplers return constructor keywords with
-objects such as noise instances, which cannot go through our validated YAML entries, and it has none for
-ADC, the split-rate DDPG, the vanilla actor-critic or the dueling DQN).
+algorithms share. They are not registered in the Zoo's ``HYPERPARAMS_SAMPLER``: a Zoo sampler returns constructor
+keywords with objects such as noise instances, which cannot go through our validated YAML entries, and its
+``objective`` trains one seed on the Zoo's environments; a trial here trains several seeds through our engine.
 
 ADC and DDPG are searched over the same shared keys, including the critic-to-actor learning-rate ratio and the
 epsilon-gated exploration schedule; ADC also over its own knobs: the critic design, the number of intervals
@@ -24,6 +24,32 @@ import optuna
 NET_ARCHS: dict[str, list[int]] = {"small": [64, 64], "medium": [256, 256], "big": [400, 300]}
 
 Sampler = Callable[["Space"], dict[str, Any]]
+#: A key's range: a list of choices (categorical), or ``("log" | "uniform", low, high)`` (a float).
+Ranges = Mapping[str, "list[Any] | tuple[str, float, float]"]
+
+GAMMAS = [0.9, 0.95, 0.98, 0.99]
+#: Keys of every off-policy actor-critic here: discount, learning rate, batch, soft update, start.
+SHARED_OFF_POLICY: Ranges = {
+    "gamma": GAMMAS,
+    "learning_rate": ("log", 1e-4, 3e-3),
+    "batch_size": [64, 128, 256],
+    "tau": [0.005, 0.01, 0.02],
+    "learning_starts": [1000, 5000, 10000],
+}
+#: Gaussian exploration, always on or epsilon-gated (the ADC paper's), and the epsilon decay schedule.
+EXPLORATION: Ranges = {"noise_type": ["normal", "epsilon-normal"], "noise_std": [0.05, 0.1, 0.2, 0.3, 0.5]}
+EPSILON_SCHEDULE: Ranges = {"epsilon_decay_steps": [5000, 10000, 20000, 40000], "epsilon_final": [0.0, 0.05, 0.1, 0.2]}
+#: The dueling DQN over discretised actions: the RL Zoo's DQN space without the network (its policy is ours).
+DQN: Ranges = {
+    "gamma": GAMMAS,
+    "learning_rate": ("log", 1e-5, 3e-3),
+    "batch_size": [32, 64, 128, 256],
+    "buffer_size": [5000, 50000, 200000],
+    "exploration_fraction": ("uniform", 0.05, 0.5),
+    "exploration_final_eps": ("uniform", 0.0, 0.2),
+    "target_update_interval": [1, 100, 1000],
+    "learning_starts": [0, 1000, 5000],
+}
 
 
 class Space:
@@ -63,55 +89,33 @@ class Space:
         """Whether the algorithm's own space draws ``key``: neither fixed nor listed."""
         return key not in self.fixed and key not in self.listed
 
-    def categorical(self, params: dict[str, Any], key: str, choices: Sequence[Any], name: str | None = None) -> None:
+    def draw(self, params: dict[str, Any], ranges: Ranges) -> dict[str, Any]:
         """
-        Set ``params[key]`` from a categorical suggestion named ``name`` (default: ``key``), unless ``key`` is fixed.
+        Draw into ``params`` (and return it) each key of ``ranges`` that the space searches, in their order.
 
         :param params: The trial's values so far
-        :param key: The entry's key
-        :param choices: The choices
-        :param name: The Optuna parameter's name
+        :param ranges: The keys' ranges
         """
-        if self.searches(key):
-            params[key] = self.trial.suggest_categorical(name or key, list(choices))
+        for key, choices in ranges.items():
+            if not self.searches(key):
+                continue
+            if isinstance(choices, tuple):
+                scale, low, high = choices
+                params[key] = self.trial.suggest_float(key, low, high, log=scale == "log")
+            else:
+                params[key] = self.trial.suggest_categorical(key, list(choices))
+        return params
 
-    def log_float(self, params: dict[str, Any], key: str, low: float, high: float) -> None:
-        """
-        Set ``params[key]`` from a log-uniform suggestion, unless ``key`` is fixed.
-
-        :param params: The trial's values so far
-        :param key: The entry's key
-        :param low: The lower bound
-        :param high: The upper bound
-        """
-        if self.searches(key):
-            params[key] = self.trial.suggest_float(key, low, high, log=True)
-
-    def uniform(self, params: dict[str, Any], key: str, low: float, high: float) -> None:
-        """
-        Set ``params[key]`` from a uniform suggestion, unless ``key`` is fixed.
-
-        :param params: The trial's values so far
-        :param key: The entry's key
-        :param low: The lower bound
-        :param high: The upper bound
-        """
-        if self.searches(key):
-            params[key] = self.trial.suggest_float(key, low, high)
+    def current(self, params: Mapping[str, Any], key: str, default: Any = None) -> Any:
+        """The value of ``key`` drawn so far, else the entry's."""
+        return params.get(key, self.entry.get(key, default))
 
 
 def _shared_off_policy(space: Space) -> dict[str, Any]:
-    """Keys of every off-policy actor-critic here: discount, learning rate, batch, soft update, start, network."""
-    params: dict[str, Any] = {}
-    space.categorical(params, "gamma", [0.9, 0.95, 0.98, 0.99])
-    space.log_float(params, "learning_rate", 1e-4, 3e-3)
-    space.categorical(params, "batch_size", [64, 128, 256])
-    space.categorical(params, "tau", [0.005, 0.01, 0.02])
-    space.categorical(params, "learning_starts", [1000, 5000, 10000])
-    if _only_net_arch(space.entry.get("policy_kwargs")):
-        space.categorical(params, "policy_kwargs", list(NET_ARCHS), name="net_arch")
-        if "policy_kwargs" in params:
-            params["policy_kwargs"] = {"net_arch": NET_ARCHS[params["policy_kwargs"]]}
+    """:data:`SHARED_OFF_POLICY`, and the network where the entry's ``policy_kwargs`` set nothing else."""
+    params = space.draw({}, SHARED_OFF_POLICY)
+    if _only_net_arch(space.entry.get("policy_kwargs")) and space.searches("policy_kwargs"):
+        params["policy_kwargs"] = {"net_arch": NET_ARCHS[space.trial.suggest_categorical("net_arch", list(NET_ARCHS))]}
     return params
 
 
@@ -125,24 +129,20 @@ def _only_net_arch(policy_kwargs: Any) -> bool:
     return text.startswith("dict(net_arch=") and text.count("=") == 1
 
 
-def _exploration(space: Space) -> dict[str, Any]:
-    """Gaussian exploration, always on or epsilon-gated (the ADC paper's) with its decay schedule."""
-    params: dict[str, Any] = {}
-    space.categorical(params, "noise_type", ["normal", "epsilon-normal"])
-    space.categorical(params, "noise_std", [0.05, 0.1, 0.2, 0.3, 0.5])
-    if params.get("noise_type", space.entry.get("noise_type")) == "epsilon-normal":
-        space.categorical(params, "epsilon_decay_steps", [5000, 10000, 20000, 40000])
-        space.categorical(params, "epsilon_final", [0.0, 0.05, 0.1, 0.2])
+def _exploration(space: Space, params: dict[str, Any]) -> dict[str, Any]:
+    """:data:`EXPLORATION`, and :data:`EPSILON_SCHEDULE` where the noise is epsilon-gated."""
+    space.draw(params, EXPLORATION)
+    if space.current(params, "noise_type") == "epsilon-normal":
+        space.draw(params, EPSILON_SCHEDULE)
     return params
 
 
-def _critic_rate(space: Space, params: Mapping[str, Any]) -> dict[str, Any]:
+def _critic_rate(space: Space, params: dict[str, Any]) -> dict[str, Any]:
     """The critic's learning rate as a multiple of the actor's (the paper uses twice the actor's)."""
-    if not space.searches("critic_learning_rate"):
-        return {}
-    ratio = space.trial.suggest_categorical("critic_rate_ratio", [1.0, 2.0, 5.0])
-    learning_rate = params.get("learning_rate", space.entry.get("learning_rate", 1e-3))
-    return {"critic_learning_rate": float(learning_rate) * ratio}
+    if space.searches("critic_learning_rate"):
+        ratio = space.trial.suggest_categorical("critic_rate_ratio", [1.0, 2.0, 5.0])
+        params["critic_learning_rate"] = float(space.current(params, "learning_rate", 1e-3)) * ratio
+    return params
 
 
 def sample_ddpg(space: Space) -> dict[str, Any]:
@@ -151,10 +151,7 @@ def sample_ddpg(space: Space) -> dict[str, Any]:
 
     :param space: The trial's search space
     """
-    params = _shared_off_policy(space)
-    params.update(_critic_rate(space, params))
-    params.update(_exploration(space))
-    return params
+    return _exploration(space, _critic_rate(space, _shared_off_policy(space)))
 
 
 def sample_adc(space: Space) -> dict[str, Any]:
@@ -163,11 +160,10 @@ def sample_adc(space: Space) -> dict[str, Any]:
 
     :param space: The trial's search space
     """
-    params = sample_ddpg(space)
-    space.categorical(params, "critic_design", ["legendre", "state_value", "paper"])
-    space.categorical(params, "n_intervals", [20, 50, 100, 200])
-    if params.get("critic_design", space.entry.get("critic_design", "legendre")) == "legendre":
-        space.categorical(params, "basis_degree", [2, 4, 6])
+    params = space.draw(sample_ddpg(space), {"critic_design": ["legendre", "state_value", "paper"]})
+    space.draw(params, {"n_intervals": [20, 50, 100, 200]})
+    if space.current(params, "critic_design", "legendre") == "legendre":
+        space.draw(params, {"basis_degree": [2, 4, 6]})
     return params
 
 
@@ -177,9 +173,7 @@ def sample_td3(space: Space) -> dict[str, Any]:
 
     :param space: The trial's search space
     """
-    params = _shared_off_policy(space)
-    params.update(_exploration(space))
-    return params
+    return _exploration(space, _shared_off_policy(space))
 
 
 def sample_sac(space: Space) -> dict[str, Any]:
@@ -188,9 +182,7 @@ def sample_sac(space: Space) -> dict[str, Any]:
 
     :param space: The trial's search space
     """
-    params = _shared_off_policy(space)
-    space.categorical(params, "ent_coef", ["auto", 0.1, 0.01])
-    return params
+    return space.draw(_shared_off_policy(space), {"ent_coef": ["auto", 0.1, 0.01]})
 
 
 def sample_vanilla_ac(space: Space) -> dict[str, Any]:
@@ -199,30 +191,17 @@ def sample_vanilla_ac(space: Space) -> dict[str, Any]:
 
     :param space: The trial's search space
     """
-    params: dict[str, Any] = {}
-    space.categorical(params, "gamma", [0.9, 0.95, 0.98, 0.99])
-    space.log_float(params, "learning_rate", 1e-5, 3e-3)
-    params.update(_critic_rate(space, params))
-    params.update(_exploration(space))
-    return params
+    params = space.draw({}, {"gamma": GAMMAS, "learning_rate": ("log", 1e-5, 3e-3)})
+    return _exploration(space, _critic_rate(space, params))
 
 
 def sample_dqn(space: Space) -> dict[str, Any]:
     """
-    The dueling DQN over discretised actions: the RL Zoo's DQN space without the network (its policy is ours).
+    The dueling DQN (:data:`DQN`).
 
     :param space: The trial's search space
     """
-    params: dict[str, Any] = {}
-    space.categorical(params, "gamma", [0.9, 0.95, 0.98, 0.99])
-    space.log_float(params, "learning_rate", 1e-5, 3e-3)
-    space.categorical(params, "batch_size", [32, 64, 128, 256])
-    space.categorical(params, "buffer_size", [5000, 50000, 200000])
-    space.uniform(params, "exploration_fraction", 0.05, 0.5)
-    space.uniform(params, "exploration_final_eps", 0.0, 0.2)
-    space.categorical(params, "target_update_interval", [1, 100, 1000])
-    space.categorical(params, "learning_starts", [0, 1000, 5000])
-    return params
+    return space.draw({}, DQN)
 
 
 #: ``--algo`` name -> its search space.

@@ -1,40 +1,31 @@
 """
 Hyperparameter tuning with Optuna (``sb3-adc train -optimize``), on the same engine as every other run.
 
-A trial draws hyperparameters from the algorithm's search space (:mod:`~sb3_adc.experiment.samplers`), writes
-them as a hyperparameter file next to its runs, and trains them with :func:`~sb3_adc.experiment.training.train`
-on each tuning seed; its value is the mean over the seeds of the final evaluation's return (``objective="return"``,
-the RL Zoo's) or success rate (``"success"``: the share of episodes ending with ``info["is_success"]``). Periodic
-evaluations of the same quantity are reported to the pruner, as in the RL Zoo's ``TrialEvalCallback``.
+The RL Zoo's ``hyperparameters_optimization``: a trial draws hyperparameters from the algorithm's search space
+(:mod:`~sb3_adc.experiment.samplers`), periodic evaluations are reported to the pruner (the Zoo's
+``TrialEvalCallback``), and its value is the final evaluation's mean return (``objective="return"``) or success
+rate (``"success"``: the share of episodes ending with ``info["is_success"]``). Differences, each for a reason:
 
-Differences from the RL Zoo, each for a reason:
-
-- The first trial of a study is the algorithm's shipped entry, unchanged: a tuned entry is then at least as
-  good as the shipped one on the tuning seeds, and the shipped settings of a baseline (at least as good as the
-  RL Zoo's) take part in the comparison.
-- A trial may train several seeds, so that one lucky seed does not pick the winner.
-- The evaluations can use other environment keywords than training (``eval_env_kwargs``): a validation split of
-  procedural layouts, say, so that what is tuned is generalisation and the test split stays unseen.
-- The search space can be given choices per key (``search_space``, ``--search-space FILE``): keys the
-  algorithm's space does not search (the buffer size, an ``env_wrapper``), or other choices for one it does.
-  Optuna's samplers take a space defined by the objective; the RL Zoo's is fixed in its code.
-- ``--n-jobs`` runs worker processes (not threads, which share one interpreter lock) on one study, and the
-  study lives in a journal file by default, so a study interrupted at any point resumes where it stopped and
-  several machines can share a study through ``--storage``. A trial cut short (its worker killed, or Ctrl-C) is
-  continued by a new trial with the same hyperparameters that keeps its runs: finished seeds are not trained again
-  and an unfinished one resumes from its latest checkpoint (taken at every evaluation), its earlier evaluations
-  carried over to the pruner. The RL Zoo starts such a trial afresh with new values; its work would be lost. The
-  budget is exactly ``n_trials`` finished trials whatever the number of workers: equal budgets are what make a
-  comparison of tuned algorithms fair.
+- The first trial is the algorithm's shipped entry: a tuned entry is at least as good on the tuning seeds.
+- A trial trains several seeds (:func:`~sb3_adc.experiment.training.train`), so one lucky seed does not win, and
+  can evaluate on other environment keywords (``eval_env_kwargs``: a validation split of layouts, say).
+- ``search_space`` (``--search-space FILE``) gives choices per key, added to or replacing the algorithm's space.
+- ``--n-jobs`` runs worker processes (threads share one interpreter lock) on one study, kept in a journal file by
+  default. An interrupted trial (worker killed, Ctrl-C) is re-queued with its hyperparameters (Optuna's
+  ``RetryHeartbeatStaleTrialCallback``) and keeps its runs: finished seeds are not trained again, an unfinished one
+  resumes from its latest checkpoint. The budget is exactly ``n_trials`` finished trials whatever the number of
+  workers: equal budgets make a comparison of tuned algorithms fair.
 
 Files, under ``{log_folder}/tuning/{study_name}/``: ``study.log`` (the Optuna journal), ``trial_N/hyperparams.yml``
-and ``trial_N/seed_S/`` (an ordinary run folder; a trial that continues another uses that trial's folder),
-``trials.csv`` and ``best_hyperparams.yml`` (usable with ``-conf``).
+and ``trial_N/seed_S/`` (run folders; a continuation uses its trial's folder), ``trials.csv`` and
+``best_hyperparams.yml`` (usable with ``-conf``).
 """
 
 from __future__ import annotations
 
 import csv
+import functools
+import itertools
 import math
 import multiprocessing
 import os
@@ -45,15 +36,20 @@ import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from multiprocessing.sharedctypes import Synchronized
-from typing import IO, Any
+from types import SimpleNamespace
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
 import optuna
 import torch as th
 import yaml
+from optuna.exceptions import ExperimentalWarning
+from optuna.storages import RetryHeartbeatStaleTrialCallback
 from optuna.storages.journal import JournalFileBackend, JournalFileSymlinkLock
 from optuna.trial import FrozenTrial, TrialState
+from rl_zoo3.callbacks import TrialEvalCallback as ZooTrialEvalCallback
+from rl_zoo3.exp_manager import ExperimentManager
 from stable_baselines3.common.callbacks import EvalCallback
 
 from sb3_adc.common.atomic import write_atomically
@@ -85,13 +81,10 @@ OBJECTIVE_NAMES = ("return", "success")
 #: Bounds of a search space (``--search-space``): keys, and choices per key.
 MAX_SEARCH_KEYS = 32
 MAX_CHOICES = 32
-_SHIPPED = "shipped"
-_WORKER = "worker"
-#: User attributes: the trial's folder (relative to the study's), the trial a continuation continues, and a
-#: trial stopped by Ctrl-C.
-_TRIAL_DIR = "trial_dir"
-_CONTINUES = "continues"
-_INTERRUPTED = "interrupted"
+#: User attributes: the shipped entry's trial, the worker running a trial, its folder (relative to the study's),
+#: the trial a continuation continues, and a trial stopped by Ctrl-C or a dead worker.
+_SHIPPED, _WORKER, _TRIAL_DIR, _CONTINUES, _INTERRUPTED = "shipped", "worker", "trial_dir", "continues", "interrupted"
+_refused = functools.partial(HyperparamsError, "command line")
 
 
 @dataclass
@@ -154,17 +147,14 @@ class TuneSettings:
 
     def __post_init__(self) -> None:
         if self.algo not in SAMPLERS:
-            raise HyperparamsError(
-                "command line", "--algo", f"no search space for {self.algo!r}; tunable: {', '.join(SAMPLERS)}"
-            )
-        if self.sampler not in SAMPLER_NAMES:
-            raise HyperparamsError("command line", "--sampler", f"{self.sampler!r}; accepted: {', '.join(SAMPLER_NAMES)}")
-        if self.pruner not in PRUNER_NAMES:
-            raise HyperparamsError("command line", "--pruner", f"{self.pruner!r}; accepted: {', '.join(PRUNER_NAMES)}")
-        if self.objective not in OBJECTIVE_NAMES:
-            raise HyperparamsError(
-                "command line", "--objective", f"{self.objective!r}; accepted: {', '.join(OBJECTIVE_NAMES)}"
-            )
+            raise _refused("--algo", f"no search space for {self.algo!r}; tunable: {', '.join(SAMPLERS)}")
+        for option, name, accepted in (
+            ("--sampler", self.sampler, SAMPLER_NAMES),
+            ("--pruner", self.pruner, PRUNER_NAMES),
+            ("--objective", self.objective, OBJECTIVE_NAMES),
+        ):
+            if name not in accepted:
+                raise _refused(option, f"{name!r}; accepted: {', '.join(accepted)}")
         self._check_search_space()
         for option, value, minimum in (
             ("--n-trials", self.n_trials, 1),
@@ -175,40 +165,32 @@ class TuneSettings:
             ("--final-eval-episodes", self.final_eval_episodes, 1),
         ):
             if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-                raise HyperparamsError("command line", option, f"must be an integer >= {minimum}, got {value!r}")
+                raise _refused(option, f"must be an integer >= {minimum}, got {value!r}")
         if self.n_timesteps is not None and self.n_timesteps < 1:
-            raise HyperparamsError("command line", "--n-timesteps", f"must be >= 1, got {self.n_timesteps}")
+            raise _refused("--n-timesteps", f"must be >= 1, got {self.n_timesteps}")
         if not self.seeds or any(seed < 0 for seed in self.seeds) or len(set(self.seeds)) != len(self.seeds):
-            raise HyperparamsError("command line", "--tuning-seeds", f"distinct seeds >= 0 are needed, got {list(self.seeds)}")
+            raise _refused("--tuning-seeds", f"distinct seeds >= 0 are needed, got {list(self.seeds)}")
         self.seeds = tuple(int(seed) for seed in self.seeds)
 
     def _check_search_space(self) -> None:
         """The shape of :attr:`search_space`; its values are checked by :func:`check_search_space`."""
         space = self.search_space
         if not isinstance(space, dict) or not all(isinstance(key, str) for key in space):
-            raise HyperparamsError(
-                "command line", "--search-space", f"must map hyperparameter names to lists of choices, got {space!r}"
-            )
+            raise _refused("--search-space", f"must map hyperparameter names to lists of choices, got {space!r}")
         if len(space) > MAX_SEARCH_KEYS:
-            raise HyperparamsError("command line", "--search-space", f"at most {MAX_SEARCH_KEYS} keys, got {len(space)}")
+            raise _refused("--search-space", f"at most {MAX_SEARCH_KEYS} keys, got {len(space)}")
         for key, choices in space.items():
+            option = f"--search-space {key}"
             if not isinstance(choices, list) or not 1 <= len(choices) <= MAX_CHOICES:
-                raise HyperparamsError(
-                    "command line", f"--search-space {key}", f"must be a list of 1 to {MAX_CHOICES} choices, got {choices!r}"
-                )
+                raise _refused(option, f"must be a list of 1 to {MAX_CHOICES} choices, got {choices!r}")
             if key in self.overrides:
-                raise HyperparamsError(
-                    "command line", f"--search-space {key}", "is fixed by -params: a key is either fixed or searched"
-                )
+                raise _refused(option, "is fixed by -params: a key is either fixed or searched")
             if key in ("n_timesteps", "policy"):
-                raise HyperparamsError(
-                    "command line", f"--search-space {key}", "is not searched: every trial has the same budget and policy"
-                )
+                raise _refused(option, "is not searched: every trial has the same budget and policy")
 
     def evaluation_env_kwargs(self, entry_env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
         """
-        The ``gym.make`` keywords of the evaluations (periodic and final): the entry's, then :attr:`env_kwargs`, then
-        :attr:`eval_env_kwargs`.
+        The ``gym.make`` keywords of the evaluations: the entry's, then :attr:`env_kwargs`, then :attr:`eval_env_kwargs`.
 
         :param entry_env_kwargs: The ``env_kwargs`` of the trial's entry
         """
@@ -272,7 +254,7 @@ def tune(settings: TuneSettings) -> TuneResult:
     _continue_interrupted(study)
     if not any(trial.user_attrs.get(_SHIPPED) and trial.state != TrialState.FAIL for trial in study.trials):
         study.enqueue_trial({}, user_attrs={_SHIPPED: True})
-    remaining = settings.n_trials - len(_finished(study)) - _count(study, TrialState.RUNNING)
+    remaining = settings.n_trials - len(_finished(study)) - len(study.get_trials(False, (TrialState.RUNNING,)))
     start = time.perf_counter()
     print(
         f"Tuning {settings.algo} on {settings.env_id}: study {settings.name} in {settings.study_dir}, "
@@ -281,8 +263,9 @@ def tune(settings: TuneSettings) -> TuneResult:
     )
     if remaining > 0:
         context = multiprocessing.get_context("spawn")
-        # The trials still to run, taken one at a time by whichever worker is free: trials differ in length (a
-        # pruned one stops early), and fixed shares would leave a worker idle while another has several to go.
+        # The trials still to run, taken one at a time by whichever worker is free. Optuna's MaxTrialsCallback (the
+        # Zoo's budget) counts the study's trials after each one ends, and two workers ending at once can both
+        # start one more: it overshoots by up to n_jobs - 1 trials. A shared count, taken under a lock, is exact.
         tickets = context.Value("i", remaining)
         n_workers = min(settings.n_jobs, remaining)
         if n_workers == 1:
@@ -299,8 +282,7 @@ def tune(settings: TuneSettings) -> TuneResult:
             failed = [worker.name for worker in workers if worker.exitcode != 0]
             if failed:
                 raise RuntimeError(f"{', '.join(failed)} stopped with an error; run the same command again to continue")
-    study = _open_study(settings, worker=0)
-    result = _report(settings, study)
+    result = _report(settings, _open_study(settings, worker=0))
     print(f"Tuning took {time.perf_counter() - start:.0f} s")
     return result
 
@@ -310,24 +292,19 @@ def _work(settings: TuneSettings, base: dict[str, Any], worker: int, tickets: Sy
     th.set_num_threads(1)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = _open_study(settings, worker)
-    while _take(tickets):
+    while True:
+        with tickets.get_lock():
+            if tickets.value <= 0:
+                return
+            tickets.value -= 1
         study.optimize(lambda trial: _objective(trial, settings, base), n_trials=1, catch=())
-
-
-def _take(tickets: Synchronized[int]) -> bool:
-    """Take one of the trials left to run, if any."""
-    with tickets.get_lock():
-        if tickets.value <= 0:
-            return False
-        tickets.value -= 1
-        return True
 
 
 def _objective(trial: optuna.Trial, settings: TuneSettings, base: dict[str, Any]) -> float:
     trial.set_user_attr(_WORKER, f"{socket.gethostname()}:{os.getpid()}")
-    shipped = bool(trial.user_attrs.get(_SHIPPED))
+    trial.set_user_attr(_INTERRUPTED, False)  # a continuation inherits the attributes of the trial it continues
     params = {}
-    if not shipped:
+    if not trial.user_attrs.get(_SHIPPED):
         params = sample(settings.algo, Space(trial, {**base, **settings.overrides}, settings.overrides, settings.search_space))
     entry = trial_entry(base, params, settings.overrides, settings.n_timesteps)
     earlier, folder = _continued_trial(trial, settings, entry)
@@ -369,9 +346,8 @@ def _run_seed(
     layout = RunLayout(run_dir, settings.env_id)
     first = index * settings.n_evaluations
     if earlier is not None and layout.is_finished():
-        result = resume(run_dir)
         _carry_reports(trial, earlier, first, first + settings.n_evaluations)
-        return result.final_evaluation
+        return resume(run_dir).final_evaluation
     callback = TrialEvalCallback(trial, settings, hyperparams_file, seed, step_offset=first, earlier=earlier)
     try:
         if earlier is not None and os.path.isdir(layout.params_dir):
@@ -388,8 +364,7 @@ def _run_seed(
                 log_folder=settings.log_folder,
                 run_dir=run_dir,
                 eval_freq=-1,
-                # A checkpoint at every evaluation of the trial: a continued trial resumes the run from there.
-                save_freq=callback.interval,
+                save_freq=callback.interval,  # a checkpoint at every evaluation: a continuation resumes from there
                 keep_checkpoints=1,
                 final_eval_episodes=settings.final_eval_episodes,
                 device=settings.device,
@@ -402,8 +377,7 @@ def _run_seed(
         raise optuna.TrialPruned(f"seed {seed}: {error}") from None
     if callback.is_pruned:
         raise optuna.TrialPruned(f"pruned at evaluation {callback.n_reports} of seed {seed}")
-    # A trial's runs are never trained further: once one has finished, its checkpoints (a replay buffer each)
-    # are only disk space. Its final model and evaluation stay, which is what a continued trial reuses.
+    # A finished run is never trained further: its checkpoints (a replay buffer each) are only disk space.
     for checkpoint in layout.checkpoints():
         checkpoint.remove()
     return result.final_evaluation
@@ -417,17 +391,21 @@ def _continued_trial(
     folder; otherwise ``None`` and the trial's own folder (a changed starting entry or ``-params`` start afresh).
     """
     own = f"trial_{trial.number}"
-    number = trial.user_attrs.get(_CONTINUES)
-    if number is None:
+    trials = trial.study.get_trials(deepcopy=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExperimentalWarning)
+        history = RetryHeartbeatStaleTrialCallback.retry_history(trials[trial.number])
+    if not history:
         return None, own
-    (previous,) = [other for other in trial.study.get_trials(deepcopy=False) if other.number == number]
+    previous = trials[history[-1]]
+    trial.set_user_attr(_CONTINUES, previous.number)
     folder = str(previous.user_attrs.get(_TRIAL_DIR, f"trial_{previous.number}"))
     path = os.path.join(settings.study_dir, folder, "hyperparams.yml")
     written = read_yaml_file(path).get(settings.env_id) if os.path.isfile(path) else None
     if written != yaml.safe_load(yaml.safe_dump(dict(entry))):
-        print(f"Trial {trial.number}: the entry of trial {number} changed since it ran; its runs are not reused")
+        print(f"Trial {trial.number}: the entry of trial {previous.number} changed since it ran; its runs are not reused")
         return None, own
-    print(f"Trial {trial.number} continues trial {number} in {folder}")
+    print(f"Trial {trial.number} continues trial {previous.number} in {folder}")
     return dict(previous.intermediate_values), folder
 
 
@@ -447,8 +425,7 @@ def objective_value(settings: TuneSettings, mean_return: float, success_rate: fl
     if settings.objective == "return":
         return mean_return
     if success_rate is None:
-        raise HyperparamsError(
-            "command line",
+        raise _refused(
             "--objective",
             f"'success' needs episodes that end with info['is_success'], which {settings.env_id} does not report; "
             f"accepted: {', '.join(OBJECTIVE_NAMES)}",
@@ -459,16 +436,14 @@ def objective_value(settings: TuneSettings, mean_return: float, success_rate: fl
 def check_success_reported(settings: TuneSettings, env: gym.Env) -> None:
     """
     ``objective="success"`` needs episodes that end with ``info["is_success"]``
-    (:func:`~sb3_adc.experiment.evaluation.success_unreported`); checked before a study starts, so that an
-    environment without it stops the command before anything is written.
+    (:func:`~sb3_adc.experiment.evaluation.success_unreported`), checked before anything is written.
 
     :param env: The evaluation environment, with the entry's wrappers (closed here)
     :raises HyperparamsError: naming ``--objective`` if the episode ends without ``is_success`` or does not end
     """
     problem = success_unreported(env)
     if problem is not None:
-        raise HyperparamsError(
-            "command line",
+        raise _refused(
             "--objective",
             f"'success' is the share of episodes ending with info['is_success'], but on {settings.env_id} {problem}; "
             f"accepted: {', '.join(OBJECTIVE_NAMES)}",
@@ -484,16 +459,11 @@ def check_search_space(settings: TuneSettings) -> None:
     """
     for key, choices in settings.search_space.items():
         for choice in choices:
+            overrides = {**settings.overrides, key: choice}
             try:
-                load_hyperparams(
-                    settings.algo,
-                    settings.env_id,
-                    settings.conf_file,
-                    {**settings.overrides, key: choice},
-                    settings.n_timesteps,
-                )
+                load_hyperparams(settings.algo, settings.env_id, settings.conf_file, overrides, settings.n_timesteps)
             except HyperparamsError as error:
-                raise HyperparamsError("command line", f"--search-space {key}", f"choice {choice!r}: {error}") from None
+                raise _refused(f"--search-space {key}", f"choice {choice!r}: {error}") from None
 
 
 def trial_entry(
@@ -516,12 +486,11 @@ def trial_entry(
     return entry
 
 
-class TrialEvalCallback(EvalCallback):
+class TrialEvalCallback(ZooTrialEvalCallback):
     """
-    Evaluate a run ``n_evaluations`` times and report each mean return (or success rate, as the study's objective
-    says) to the trial, stopping the run when the pruner says so (the RL Zoo's ``TrialEvalCallback``, with the
-    evaluation environment built from the trial's entry and ``eval_env_kwargs``, and the report steps of several
-    seeds laid end to end).
+    The RL Zoo's ``TrialEvalCallback``, evaluating a run ``n_evaluations`` times on the timestep count and reporting
+    the study's objective, with the evaluation environment built from the trial's entry and ``eval_env_kwargs``,
+    and the report steps of several seeds laid end to end.
 
     :param trial: The Optuna trial
     :param settings: The study's settings
@@ -545,8 +514,7 @@ class TrialEvalCallback(EvalCallback):
         config.env_kwargs = settings.evaluation_env_kwargs(config.env_kwargs)
         eval_env = wrap_vec_env(config, make_run_envs(config, 1, seed + EVAL_SEED_OFFSET), training=False)
         # `eval_freq=1`: `EvalCallback._on_step` evaluates at every call it gets; `schedule` decides which.
-        super().__init__(eval_env, n_eval_episodes=settings.eval_episodes, eval_freq=1, deterministic=True, verbose=0)
-        self.trial = trial
+        super().__init__(eval_env, trial, n_eval_episodes=settings.eval_episodes, eval_freq=1)
         self.settings = settings
         self.step_offset = step_offset
         self.earlier = dict(earlier or {})
@@ -554,18 +522,17 @@ class TrialEvalCallback(EvalCallback):
         self.interval = max(config.n_timesteps // settings.n_evaluations // config.n_envs, 1) * config.n_envs
         self.schedule = TimestepSchedule(self.interval)
         self.n_reports = 0
-        self.is_pruned = False
 
     def _on_training_start(self) -> None:
-        # A resumed run evaluates at the timesteps an uninterrupted one would and carries over the evaluations
-        # before its checkpoint (they are not redone).
+        # A resumed run evaluates where an uninterrupted one would and carries over the evaluations before its
+        # checkpoint (they are not redone).
         self.schedule.start(self.model.num_timesteps)
         self.n_reports = min(self.model.num_timesteps // self.interval, self.settings.n_evaluations)
         _carry_reports(self.trial, self.earlier, self.step_offset, self.step_offset + self.n_reports)
 
     def _on_step(self) -> bool:
         if self.schedule.due(self.num_timesteps):
-            super()._on_step()
+            EvalCallback._on_step(self)
             # EvalCallback keeps the is_success of the evaluation's episodes (SB3 logs their mean as success_rate).
             value = objective_value(self.settings, float(self.last_mean_reward), success_rate(self._is_success_buffer))
             self.trial.report(value, self.step_offset + self.n_reports)
@@ -591,9 +558,9 @@ def repair_journal(path: str) -> str | None:
     process killed mid-write) can be continued.
 
     Optuna skips a last line without its newline when it reads the journal, but appends its next record to it,
-    which makes a line that no later read can decode. Here, under the journal's own lock (so that no other
-    process is writing), a file that does not end with a newline is copied to ``{path}.torn-{n}`` (the first
-    free ``n``) and truncated after its last newline; a warning names both files.
+    which makes a line that no later read can decode. Here, under the journal's own lock, a file that does not end
+    with a newline is copied to ``{path}.torn-{n}`` (the first free ``n``) and truncated after its last newline; a
+    warning names both files.
 
     :param path: The journal file (one that does not exist is left alone)
     :return: The copy of the torn file, or ``None`` where nothing was torn
@@ -604,27 +571,11 @@ def repair_journal(path: str) -> str | None:
     lock.acquire()
     try:
         with open(path, "rb+") as stream:
-            size = stream.seek(0, os.SEEK_END)
-            if size == 0:
+            text = stream.read()
+            if not text or text.endswith(b"\n"):
                 return None
-            stream.seek(size - 1)
-            if stream.read(1) == b"\n":
-                return None
-            # Find the end of the last complete line, reading backwards in blocks.
-            end = size
-            keep = 0
-            while end > 0:
-                start = max(0, end - 65536)
-                stream.seek(start)
-                newline = stream.read(end - start).rfind(b"\n")
-                if newline >= 0:
-                    keep = start + newline + 1
-                    break
-                end = start
-            n = 0
-            while os.path.exists(f"{path}.torn-{n}"):
-                n += 1
-            copy = f"{path}.torn-{n}"
+            keep = text.rfind(b"\n") + 1
+            copy = next(f"{path}.torn-{n}" for n in itertools.count() if not os.path.exists(f"{path}.torn-{n}"))
             shutil.copyfile(path, copy)
             stream.truncate(keep)
             stream.flush()
@@ -632,7 +583,7 @@ def repair_journal(path: str) -> str | None:
     finally:
         lock.release()
     warnings.warn(
-        f"{path}: its last line was cut short ({size - keep} bytes without a newline, a write interrupted by a "
+        f"{path}: its last line was cut short ({len(text) - keep} bytes without a newline, a write interrupted by a "
         f"crash); it is removed so that the study can continue, and the file as it was is kept in {copy}",
         stacklevel=2,
     )
@@ -641,28 +592,18 @@ def repair_journal(path: str) -> str | None:
 
 def _open_study(settings: TuneSettings, worker: int) -> optuna.Study:
     url = settings.storage_url()
-    storage: str | optuna.storages.BaseStorage
-    if "://" in url:
-        storage = url  # a database: Optuna opens it (SQLAlchemy needed)
-    else:
-        directory = os.path.dirname(os.path.abspath(url))
-        os.makedirs(directory, exist_ok=True)
+    storage: str | optuna.storages.BaseStorage = url  # a database: Optuna opens it (SQLAlchemy needed)
+    if "://" not in url:
+        os.makedirs(os.path.dirname(os.path.abspath(url)), exist_ok=True)
         storage = optuna.storages.JournalStorage(JournalFileBackend(url))
-    sampler: optuna.samplers.BaseSampler
     seed = settings.sampler_seed + worker
+    sampler: optuna.samplers.BaseSampler = optuna.samplers.RandomSampler(seed=seed)
     if settings.sampler == "tpe":
+        # Not the Zoo's `_create_sampler`: its TPE is multivariate, which would change the draws of committed studies.
         sampler = optuna.samplers.TPESampler(n_startup_trials=settings.n_startup_trials, seed=seed)
-    else:
-        sampler = optuna.samplers.RandomSampler(seed=seed)
-    pruner: optuna.pruners.BasePruner
-    if settings.pruner == "median":
-        pruner = optuna.pruners.MedianPruner(
-            n_startup_trials=settings.n_startup_trials, n_warmup_steps=settings.n_evaluations // 3
-        )
-    elif settings.pruner == "halving":
-        pruner = optuna.pruners.SuccessiveHalvingPruner(min_resource=1, reduction_factor=4)
-    else:
-        pruner = optuna.pruners.NopPruner()
+    # The Zoo's pruners (median after `n_evaluations // 3` warm-up steps, successive halving, none).
+    zoo = cast(Any, SimpleNamespace(n_startup_trials=settings.n_startup_trials, n_evaluations=settings.n_evaluations))
+    pruner = ExperimentManager._create_pruner(zoo, settings.pruner)
     try:
         return optuna.create_study(
             storage=storage,
@@ -673,11 +614,14 @@ def _open_study(settings: TuneSettings, worker: int) -> optuna.Study:
             load_if_exists=True,
         )
     except ImportError as error:
-        raise HyperparamsError("command line", "--storage", f"{url}: {error} (a journal file `*.log` needs nothing)") from None
+        raise _refused("--storage", f"{url}: {error} (a journal file `*.log` needs nothing)") from None
 
 
 def _fail_dead_trials(study: optuna.Study) -> None:
-    """Mark as failed the running trials of this machine whose worker process is gone (an interrupted study)."""
+    """
+    Mark as failed (and interrupted) the running trials of this machine whose worker process is gone. Optuna's
+    heartbeats do this for a database (``RDBStorage`` only); the default journal file has none.
+    """
     host = socket.gethostname()
     for trial in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
         worker = str(trial.user_attrs.get(_WORKER, ""))
@@ -689,18 +633,16 @@ def _fail_dead_trials(study: optuna.Study) -> None:
 
 
 def _continue_interrupted(study: optuna.Study) -> None:
-    """
-    Queue, for each interrupted trial (a failed one whose worker is gone or that Ctrl-C stopped) not yet continued,
-    a trial with its hyperparameters that continues its runs (see :func:`_continued_trial`).
-    """
-    trials = study.get_trials(deepcopy=False)
-    continued = {trial.user_attrs.get(_CONTINUES) for trial in trials}
-    for trial in trials:
-        if trial.state == TrialState.FAIL and trial.user_attrs.get(_INTERRUPTED) and trial.number not in continued:
-            attrs: dict[str, Any] = {_CONTINUES: trial.number}
-            if trial.user_attrs.get(_SHIPPED):
-                attrs[_SHIPPED] = True
-            study.enqueue_trial(dict(trial.params), user_attrs=attrs, skip_if_exists=False)
+    """Re-queue each interrupted trial not yet continued, with its parameters and attributes, as Optuna's
+    ``RetryHeartbeatStaleTrialCallback`` re-queues a stale one (:func:`_continued_trial` then reuses its runs)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExperimentalWarning)
+        retry = RetryHeartbeatStaleTrialCallback()
+        trials = study.get_trials(deepcopy=False)
+        continued = {retry.retry_history(trial)[-1] for trial in trials if retry.retry_history(trial)}
+        for trial in trials:
+            if trial.state == TrialState.FAIL and trial.user_attrs.get(_INTERRUPTED) and trial.number not in continued:
+                retry(study, trial)
 
 
 def _alive(pid: int) -> bool:
@@ -709,16 +651,12 @@ def _alive(pid: int) -> bool:
     except ProcessLookupError:
         return False
     except PermissionError:
-        return True
+        pass
     return True
 
 
 def _finished(study: optuna.Study) -> list[FrozenTrial]:
     return study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.PRUNED))
-
-
-def _count(study: optuna.Study, state: TrialState) -> int:
-    return len(study.get_trials(deepcopy=False, states=(state,)))
 
 
 def _write_entry(path: str, env_id: str, entry: Mapping[str, Any], comment: str) -> None:
@@ -727,29 +665,24 @@ def _write_entry(path: str, env_id: str, entry: Mapping[str, Any], comment: str)
 
 
 def _report(settings: TuneSettings, study: optuna.Study) -> TuneResult:
-    trials = study.get_trials(deepcopy=False)
-    rows = []
-    for trial in trials:
-        rows.append(
-            {
-                "number": trial.number,
-                "state": trial.state.name,
-                "value": "" if trial.value is None else round(trial.value, 3),
-                "shipped": bool(trial.user_attrs.get(_SHIPPED)),
-                "continues": trial.user_attrs.get(_CONTINUES, ""),
-                "duration_s": "" if trial.duration is None else round(trial.duration.total_seconds(), 1),
-                **{f"return_seed_{seed}": trial.user_attrs.get(f"return_seed_{seed}", "") for seed in settings.seeds},
-                **{
-                    f"success_seed_{seed}": trial.user_attrs.get(f"success_seed_{seed}", "")
-                    for seed in settings.seeds
-                    if settings.objective == "success"
-                },
-                "params": yaml.safe_dump(trial.params, default_flow_style=True, width=10**6).strip(),
-            }
-        )
+    attrs = [f"return_seed_{seed}" for seed in settings.seeds]
+    attrs += [f"success_seed_{seed}" for seed in settings.seeds if settings.objective == "success"]
+    rows = [
+        {
+            "number": trial.number,
+            "state": trial.state.name,
+            "value": "" if trial.value is None else round(trial.value, 3),
+            "shipped": bool(trial.user_attrs.get(_SHIPPED)),
+            "continues": trial.user_attrs.get(_CONTINUES, ""),
+            "duration_s": "" if trial.duration is None else round(trial.duration.total_seconds(), 1),
+            **{name: trial.user_attrs.get(name, "") for name in attrs},
+            "params": yaml.safe_dump(trial.params, default_flow_style=True, width=10**6).strip(),
+        }
+        for trial in study.get_trials(deepcopy=False)
+    ]
     csv_path = os.path.join(settings.study_dir, "trials.csv")
 
-    def write_csv(stream: IO[Any]) -> None:
+    def write_csv(stream: Any) -> None:
         writer = csv.DictWriter(stream, fieldnames=list(rows[0]) if rows else ["number"])
         writer.writeheader()
         writer.writerows(rows)
@@ -758,24 +691,23 @@ def _report(settings: TuneSettings, study: optuna.Study) -> TuneResult:
     complete = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
     if not complete:
         raise RuntimeError(f"no trial of study {settings.name} completed; see {csv_path}")
-    best = max(complete, key=lambda trial: float(trial.value))  # type: ignore[arg-type]
+    best = max(complete, key=lambda trial: float(cast(float, trial.value)))
     print(f"{'trial':>5}  {'state':<8} {'value':>9}  params")
     for row in sorted(rows, key=lambda r: (r["state"] != "COMPLETE", -float(r["value"]) if r["value"] != "" else math.inf)):
         label = "shipped entry" if row["shipped"] else row["params"]
         print(f"{row['number']:>5}  {row['state']:<8} {row['value']!s:>9}  {label}")
-    best_entry = read_yaml_file(str(best.user_attrs["hyperparams"]))[settings.env_id]
     best_file = os.path.join(settings.study_dir, "best_hyperparams.yml")
     origin = "the shipped entry" if best.user_attrs.get(_SHIPPED) else f"trial {best.number}"
     quantity = "mean final return" if settings.objective == "return" else "mean final success rate"
     _write_entry(
         best_file,
         settings.env_id,
-        best_entry,
+        read_yaml_file(str(best.user_attrs["hyperparams"]))[settings.env_id],
         f"Best of {len(_finished(study))} trials of study {settings.name} ({origin}): {quantity} "
         f"{best.value:.2f} over seeds {list(settings.seeds)}, {settings.n_timesteps or 'entry'} timesteps",
     )
     print(f"Best: {origin}, {quantity} {best.value:.2f}; hyperparameters in {best_file} (use with -conf)")
-    return TuneResult(settings.study_dir, float(best.value), dict(best.params), best_file, len(_finished(study)))  # type: ignore[arg-type]
+    return TuneResult(settings.study_dir, float(cast(float, best.value)), dict(best.params), best_file, len(_finished(study)))
 
 
 __all__ = [
