@@ -5,7 +5,7 @@ kinematic robot can steer (:func:`sb3_adc_envs.lidar_course.passability.kinemati
 steering actions with the environment's speed, turn limit and robot radius), against the 500 steps of an episode.
 
 The generator guarantees a gap wider than the robot (a flood fill); this checks the robot's turning radius too,
-so that the success rates of ``benchmarks/procedural_generalisation.py`` can be read against what is possible: a
+so that the success rates of ``benchmarks/experiments/lidar_course_v1.yml`` can be read against what is possible: a
 layout that reaches 500 steps has a collision-free episode, so a policy that crashes there failed to learn it.
 
 Writes ``benchmarks/results/procedural_generalisation/feasibility.csv`` (one row per layout or course),

@@ -1,13 +1,13 @@
 """
 Can a policy that sees one lidar scan drive the procedural courses at all? The learned policies of
-``procedural_generalisation.py`` are memoryless functions of the observation, and none reaches the >= 90% success
+``experiments/lidar_course_v1.yml`` are memoryless functions of the observation, and none reaches the >= 90% success
 target; ``layout_feasibility.py`` shows that every test course can be driven by a driver that knows the whole map.
 This benchmark scores a driver that knows what a policy knows: :class:`~sb3_adc_envs.lidar_course.planner.LidarLocalPlanner`,
 a local planner on the current scan with the robot's motion model (no memory, no map, no learning).
 
 Protocol, as for the learners: the planner's parameters (``horizon`` and ``margin``, a grid of four) are chosen on
 the validation layouts (``VALIDATION_LAYOUT_SEEDS``, ``--layouts`` of them, kinematic robot, clean observations);
-the chosen planner is then scored once on the test sets of ``procedural_generalisation.py`` (the 100 held-out
+the chosen planner is then scored once on the test sets of ``experiments/lidar_course_v1.yml`` (the 100 held-out
 layouts and every course file, ``--course-episodes`` jittered episodes each, seeded alike) for each observation
 variant and robot, and with a lidar of four rays per reading (``VARIANTS``). The planner is deterministic: one
 score per test set.
@@ -29,17 +29,24 @@ import itertools
 import json
 import time
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 import pandas as pd
-from procedural_generalisation import COURSES_DIR, HELD_OUT, RESULTS_DIR, layout_success, score_policy
 
 from sb3_adc.experiment.provenance import machine_metadata
+from sb3_adc.experiment.test_sets import play_episode
 from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS, VALIDATION_LAYOUT_SEEDS
 from sb3_adc_envs.lidar_course.planner import LidarLocalPlanner
 
+ROOT = Path(__file__).resolve().parent
+RESULTS_DIR = ROOT / "results" / "procedural_generalisation"
+COURSES_DIR = ROOT.parent / "envs" / "courses"
+HELD_OUT = "held-out layouts"
+#: Start-pose jitter of the course-file episodes (the test sets of ``experiments/lidar_course_v1.yml``).
+COURSE_JITTER = {"start_position_jitter": 0.1, "start_heading_jitter_deg": 10.0}
 #: The planner parameters tried on the validation layouts.
 GRID: dict[str, list[Any]] = {"horizon": [25, 40], "margin": [0.2, 0.4]}
 #: Observation variant, robot and rays per lidar reading of each test: the four of the learners' grids, then the
@@ -52,6 +59,21 @@ VARIANTS = [
     ("sb3_adc/LidarObstacleCourse-v1", "kinematic", 4),
 ]
 SELECTION_ENV = VARIANTS[0]
+
+
+def layout_success(planner: Any, env: gym.Env, layout_seed: int) -> bool:
+    """One episode on a procedural layout, seeded by its layout seed: whether it ended without a collision."""
+    return bool(play_episode(planner, env, seed=layout_seed, options={"layout_seed": layout_seed})["success"])
+
+
+def rates(test_set: str, successes: list[bool]) -> dict[str, Any]:
+    """A test set's row: its episodes, successes and success rate."""
+    return {
+        "test_set": test_set,
+        "episodes": len(successes),
+        "successes": int(sum(successes)),
+        "success_rate": float(np.mean(successes)),
+    }
 
 
 def validate(params: dict[str, Any], n_layouts: int) -> dict[str, Any]:
@@ -79,7 +101,13 @@ def score_variant(
     sensor = gym.make(env_id, **kwargs)
     planner = LidarLocalPlanner.for_env(sensor, **params)
     sensor.close()
-    rows, _ = score_policy(planner, lambda env: env, env_id, kwargs, courses, course_episodes, n_layouts, 0)
+    env = gym.make(env_id, **kwargs, layout_seeds=TEST_LAYOUT_SEEDS)
+    rows = [rates(HELD_OUT, [layout_success(planner, env, TEST_LAYOUT_SEEDS[0] + k) for k in range(n_layouts)])]
+    env.close()
+    for course in courses:
+        env = gym.make(env_id, **{**kwargs, **COURSE_JITTER, "course": course})
+        rows.append(rates(course, [bool(play_episode(planner, env, seed=k)["success"]) for k in range(course_episodes)]))
+        env.close()
     return [{"env": env_id, "robot": robot, "rays_per_reading": rays_per_reading, **row} for row in rows]
 
 

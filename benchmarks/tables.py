@@ -23,7 +23,6 @@ RESULTS_DIR = ROOT / "benchmarks" / "results"
 TABLES_DIR = ROOT / "docs" / "results" / "tables"
 ALGOS = ("ADC", "DDPG", "TD3", "SAC")
 MISSING = "—"
-PROCEDURAL = "procedural_generalisation"
 HELD_OUT = "held-out layouts"
 
 
@@ -31,21 +30,23 @@ HELD_OUT = "held-out layouts"
 class Task:
     """
     One row: its ``label``; what the cells measure with the budget (``metric``); the ``summary`` file, relative to
-    ``benchmarks/results``: an experiment's ``summary.csv`` (a row per ``config`` with P(ADC > config)) or the
-    procedural grids' ``summary.csv`` (``grid`` names the grid, P(ADC > X) is in its ``comparisons.csv``); and
-    ``configs``, algorithm -> configuration or ``algo`` (an algorithm not run is absent).
+    ``benchmarks/results``: an experiment's ``summary.csv`` (a row per ``config`` with P(ADC > config)) or, with
+    ``env``, its ``test_summary.csv`` (a row per ``env``, test set and ``config``, with P(reference > config) on the
+    held-out layouts); and ``configs``, algorithm -> configuration (an algorithm not run is absent).
     """
 
     label: str
     metric: str
     summary: str
     configs: dict[str, str]
-    grid: str = ""
+    env: str = ""
 
 
 SHIPPED = {"ADC": "adc", "DDPG": "ddpg", "TD3": "td3", "SAC": "sac"}
+WHEELED = {algo: f"{config}_wheeled" for algo, config in SHIPPED.items()}
 LIDAR = "success on 100 held-out layouts (300,000 steps)"
-GRIDS = f"{PROCEDURAL}/summary.csv"
+GRIDS = "lidar_course_v1/test_summary.csv"
+CLEAN, NOISY = "sb3_adc/LidarObstacleCourse-v1", "sb3_adc/LidarObstacleCourseNoisy-v1"
 TASKS = (
     # TD3's and SAC's shipped Noisy Pendulum entries are the winners of the equal-budget tuning (fair_tuning.py).
     Task(
@@ -54,10 +55,10 @@ TASKS = (
         "noisy_pendulum_shipped/summary.csv",
         {"ADC": "adc_shipped", "DDPG": "ddpg_shipped", "TD3": "td3_tuned", "SAC": "sac_tuned"},
     ),
-    Task("Lidar course, kinematic robot", LIDAR, GRIDS, SHIPPED, "LidarObstacleCourse-v1"),
-    Task("Lidar course, kinematic robot, noisy lidar", LIDAR, GRIDS, SHIPPED, "LidarObstacleCourseNoisy-v1"),
-    Task("Lidar course, wheeled robot", LIDAR, GRIDS, SHIPPED, "LidarObstacleCourse-v1_wheeled"),
-    Task("Lidar course, wheeled robot, noisy lidar", LIDAR, GRIDS, SHIPPED, "LidarObstacleCourseNoisy-v1_wheeled"),
+    Task("Lidar course, kinematic robot", LIDAR, GRIDS, SHIPPED, CLEAN),
+    Task("Lidar course, kinematic robot, noisy lidar", LIDAR, GRIDS, SHIPPED, NOISY),
+    Task("Lidar course, wheeled robot", LIDAR, GRIDS, WHEELED, CLEAN),
+    Task("Lidar course, wheeled robot, noisy lidar", LIDAR, GRIDS, WHEELED, NOISY),
 )
 
 #: (estimate, CI low, CI high)
@@ -90,16 +91,15 @@ def triple(row: dict[str, str], *columns: str) -> Interval:
 def task_numbers(task: Task, results: Path) -> tuple[dict[str, Interval], dict[str, Interval]]:
     """Per algorithm of ``task``: its final IQM with CI, and P(ADC > it) with CI (not for ADC itself)."""
     rows = read_csv(results / task.summary)
-    comparisons = read_csv(results / PROCEDURAL / "comparisons.csv") if task.grid else []
     scores: dict[str, Interval] = {}
     probabilities: dict[str, Interval] = {}
     for algo, config in task.configs.items():
-        if task.grid:
-            row = only(rows, grid=task.grid, model="final", algo=config, test_set=HELD_OUT)
+        if task.env:
+            row = only(rows, env=task.env, config=config, test_set=HELD_OUT)
             scores[algo] = triple(row, "iqm", "iqm_ci_low", "iqm_ci_high")
             if algo != "ADC":
-                pair = only(comparisons, changed=f"{task.grid} (ADC)", control=f"{task.grid} ({algo})", test_set=HELD_OUT)
-                probabilities[algo] = triple(pair, "probability", "ci_low", "ci_high")
+                assert row["reference"] == task.configs["ADC"], f"{config} is compared with {row['reference']}"
+                probabilities[algo] = triple(row, "p_reference", "p_reference_ci_low", "p_reference_ci_high")
         else:
             row = only(rows, config=config)
             scores[algo] = triple(row, "final_iqm", "final_iqm_ci_low", "final_iqm_ci_high")
@@ -133,7 +133,7 @@ def tables(results: Path = RESULTS_DIR) -> tuple[list[list[str]], list[list[str]
     tasks = [["task", "metric (IQM [95% CI])", *ALGOS, "verdict from P(ADC > X)"]]
     probabilities = [["task", *(f"P(ADC > {algo}) [95% CI]" for algo in ALGOS[1:])]]
     for task in TASKS:
-        decimals = 2 if task.grid else 1
+        decimals = 2 if task.env else 1
         scores, p_adc = task_numbers(task, results)
         cells = [interval(*scores[algo], decimals) if algo in scores else MISSING for algo in ALGOS]
         tasks.append([task.label, task.metric, *cells, verdict(p_adc)])

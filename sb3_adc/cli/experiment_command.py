@@ -17,7 +17,9 @@ of benchmarks/experiments/): every configuration x environment x seed, one run p
 backend) or per Ray task, resumable like `sb3-adc benchmark`; then write to its results folder the
 merged tables (final.csv, evaluations.csv, episodes.csv), the summary (summary.csv, summary.md,
 summary_table.csv: IQM [95% CI], across-seed std, AUC, P(reference > configuration)) and the
-figures. A bad file stops the command with exit status 2 before anything is trained.
+figures; with test_sets, each finished run's final model scored on its held-out episodes
+(test_episodes.csv, test_runs.csv, test_summary.{csv,md}), resumably. A bad file stops the command
+with exit status 2 before anything is trained.
 
 examples:
   sb3-adc experiment benchmarks/experiments/noisy_pendulum_shipped.yml --workers 2

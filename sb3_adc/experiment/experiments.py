@@ -20,10 +20,15 @@ The file (read with the hyperparameter files' bounded YAML reader: nothing in it
     runs: ../runs/noisy_pendulum_equal_tuning   # optional (default ../runs/<name>): shared runs train once
     results: ../results/noisy_pendulum_shipped  # optional (default ../results/<name>)
     figures: ../../docs/_static/benchmarks      # optional: where the figures go, as <name>_<figure>.png (none kept without)
+    test_sets:                              # optional: held-out episodes that score each finished run (test_sets.py)
+      held-out layouts: {env_kwargs: {start_position_jitter: 0.0}, layout_seeds: {start: 1000000, stop: 1000100}}
+      unseen course files: {env_kwargs: {start_position_jitter: 0.1}, courses: [unseen_posts], episodes: 10}
 
 Paths are relative to the file's folder. ``hyperparams`` is a folder of ``{algo}.yml`` files (default: the shipped
 ones); ``overrides`` are ``-params``. Each configuration is a benchmark grid in ``{runs}/{config}/``; the tables
-of all of them are merged with the configuration's name in the ``algo`` column.
+of all of them are merged with the configuration's name in the ``algo`` column. A test set (``model: best`` scores each
+run's ``best_model.zip`` instead of its final model) is scored after the training, resumably, into
+``test_episodes.csv``, ``test_runs.csv`` and ``test_summary.{csv,md}`` (:mod:`sb3_adc.experiment.test_sets`).
 """
 
 from __future__ import annotations
@@ -45,6 +50,7 @@ from sb3_adc.experiment.benchmark import (
     run_benchmarks,
 )
 from sb3_adc.experiment.layout import FolderLock
+from sb3_adc.experiment.test_sets import TestSet, TestSetError, read_test_sets
 
 #: Keys of an experiment file and of one of its configurations.
 KEYS = (
@@ -60,8 +66,9 @@ KEYS = (
     "runs",
     "results",
     "figures",
+    "test_sets",
 )
-CONFIG_KEYS = ("algo", "hyperparams", "overrides", "label")
+CONFIG_KEYS = ("algo", "hyperparams", "overrides", "label", "reference")
 EVALUATION_KEYS = ("episodes", "final_episodes")
 #: Bounds on a file's grid, so that a typo cannot ask for a million runs.
 MAX_CONFIGS, MAX_ENVS, MAX_SEEDS = 64, 16, 1000
@@ -82,12 +89,14 @@ class Config:
     :param hyperparams: Folder of ``{algo}.yml`` files (``None``: the shipped files)
     :param overrides: ``key: value`` overrides of its entries (``-params``)
     :param label: Its name in figures
+    :param reference: The configuration it is compared with on the test sets (``None``: the experiment's reference)
     """
 
     algo: str
     hyperparams: str | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
     label: str | None = None
+    reference: str | None = None
 
 
 @dataclass(frozen=True)
@@ -110,6 +119,7 @@ class Experiment:
     :param runs: Folder of the runs (one grid per configuration)
     :param results: Folder of the tables
     :param figures: Folder of the figures (``None``: none is kept)
+    :param test_sets: Held-out test sets scoring each finished run (:mod:`~sb3_adc.experiment.test_sets`)
     """
 
     name: str
@@ -127,6 +137,7 @@ class Experiment:
     runs: str = ""
     results: str = ""
     figures: str | None = None
+    test_sets: dict[str, TestSet] = field(default_factory=dict)
 
     def grids(self, tiny: bool = False, runs: str | None = None) -> dict[str, BenchmarkSettings]:
         """
@@ -150,6 +161,10 @@ class Experiment:
             )
             for name, config in self.configs.items()
         }
+
+    def references(self) -> dict[str, str | None]:
+        """Each configuration's reference on the test sets: its own, else the experiment's."""
+        return {name: config.reference or self.reference for name, config in self.configs.items()}
 
     def resolved(self) -> dict[str, dict[str, dict[str, Any]]]:
         """
@@ -181,6 +196,7 @@ class Experiment:
                     "algo": config.algo,
                     "overrides": dict(config.overrides),
                     "hyperparams": "shipped" if config.hyperparams is None else os.path.relpath(config.hyperparams, root),
+                    **({"reference": config.reference} if config.reference else {}),
                 }
                 for name, config in self.configs.items()
             },
@@ -191,6 +207,7 @@ class Experiment:
             "eval": f"{self.eval_episodes} deterministic episodes per evaluation, 20 per run; "
             f"final: {self.final_eval_episodes} deterministic episodes",
             "resolved": self.resolved(),
+            **({"test_sets": {name: test.record() for name, test in self.test_sets.items()}} if self.test_sets else {}),
         }
 
 
@@ -240,7 +257,7 @@ def _config(name: Any, value: Any, path: str) -> Config:
     if hyperparams is not None:
         conf_file = os.path.join(hyperparams, f"{algo}.yml")
         _require(os.path.isfile(conf_file), path, f"{key}.hyperparams", f"has no {algo}.yml ({conf_file})")
-    return Config(str(algo), hyperparams, dict(overrides), label)
+    return Config(str(algo), hyperparams, dict(overrides), label, value.get("reference"))
 
 
 def read_experiment(path: str) -> Experiment:
@@ -269,10 +286,17 @@ def read_experiment(path: str) -> Experiment:
         _require(_int(value, 1, 1000), path, f"evaluation.{key}", "must be an integer in 1-1000")
     reference, threshold = data.get("reference"), data.get("threshold")
     _require(reference is None or reference in configs, path, "reference", f"must be one of the configs {list(configs)}")
+    for key, value in configs.items():
+        problem = f"must be one of the configs {list(configs)}"
+        _require((value or {}).get("reference", reference) in (*configs, None), path, f"configs.{key}.reference", problem)
     _require(threshold is None or isinstance(threshold, int | float), path, "threshold", "must be a number")
     reps, description = data.get("bootstrap_reps", 5000), data.get("description", "")
     _require(_int(reps, 100, 100_000), path, "bootstrap_reps", "must be an integer in 100-100000")
     _require(isinstance(description, str), path, "description", "must be a string")
+    try:
+        test_sets = read_test_sets(data.get("test_sets"))
+    except TestSetError as error:
+        raise ExperimentError(path, error.key, error.problem) from None
     return Experiment(
         name=name,
         path=os.path.abspath(path),
@@ -289,6 +313,7 @@ def read_experiment(path: str) -> Experiment:
         runs=str(_folder(data.get("runs", f"../runs/{name}"), path, "runs")),
         results=str(_folder(data.get("results", f"../results/{name}"), path, "results")),
         figures=_folder(data.get("figures"), path, "figures"),
+        test_sets=test_sets,
     )
 
 
@@ -333,6 +358,17 @@ def run_experiment(
         output = os.path.join(scratch, "results") if scratch else experiment.results
         if any(outcome.final is not None for outcome in outcomes):
             merge_tables(tables, output)
+            if experiment.test_sets:  # each finished run scored (tiny: on two layouts or one episode per test set)
+                from sb3_adc.experiment.test_sets import score
+
+                names = {os.path.normpath(grid.log_folder): name for name, grid in grids.items()}
+                finished = {
+                    (names[os.path.normpath(run.log_folder)], run.spec.env_id, run.spec.seed): run.spec.run_dir(run.log_folder)
+                    for run in outcomes
+                    if run.final is not None
+                }
+                test_sets = {name: test.tiny() if tiny else test for name, test in experiment.test_sets.items()}
+                score(finished, test_sets, output, workers or 1)
             write_report(experiment, output, figures=None if tiny else experiment.figures, wall_time_s=elapsed)
     return outcomes
 

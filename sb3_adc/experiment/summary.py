@@ -23,6 +23,7 @@ from sb3_adc.experiment.plots import plot_results
 from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc.experiment.results import read_table
 from sb3_adc.experiment.statistics import CONFIDENCE, _seeded_bootstrap, time_to_threshold
+from sb3_adc.experiment.test_sets import write_summary as write_test_summary
 from sb3_adc.extras import requires_extra
 
 if TYPE_CHECKING:
@@ -208,9 +209,10 @@ def write_report(experiment: Experiment, output: str, figures: str | None = None
     ``evaluations.csv``, ``episodes.csv``): ``summary.csv``, ``summary.md`` and ``summary_table.csv``
     (:mod:`~sb3_adc.experiment.summary`), ``time_to_threshold.{csv,md}`` with a threshold, the figures and
     tables of :func:`~sb3_adc.experiment.plots.plot_results` (labelled with the configurations' labels), and
-    ``metadata.json`` (the settings, the versions and the machine). No training: ``sb3-adc experiment FILE
-    --report`` redraws the committed results this way (and leaves ``metadata.json``, which describes the training,
-    as it is).
+    ``metadata.json`` (the settings, the versions and the machine); with test sets, ``test_summary.{csv,md}``
+    (:func:`~sb3_adc.experiment.test_sets.write_summary`; only that where the training curves were not kept). No
+    training: ``sb3-adc experiment FILE --report`` redraws the committed results this way (and leaves
+    ``metadata.json``, which describes the training, as it is).
 
     :param experiment: The experiment
     :param output: Its results folder
@@ -218,6 +220,9 @@ def write_report(experiment: Experiment, output: str, figures: str | None = None
     :param wall_time_s: Seconds this invocation trained, added to the recorded ones (``None``: no training,
         ``metadata.json`` is left as it is)
     """
+    write_test_summary(output, experiment.references(), experiment.bootstrap_reps)
+    if not os.path.isfile(os.path.join(output, EVALUATIONS_CSV)):  # results kept without their training curves
+        return
     final, evaluations = read_table(os.path.join(output, FINAL_CSV)), read_table(os.path.join(output, EVALUATIONS_CSV))
     episodes = read_table(os.path.join(output, EPISODES_CSV))
     reps = experiment.bootstrap_reps

@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 
 from sb3_adc.cli import main
+from sb3_adc.experiment import test_sets as scoring
 from sb3_adc.experiment.experiments import ExperimentError, read_experiment, repository_root, run_experiment
 from sb3_adc.experiment.summary import summary
 
@@ -77,6 +78,22 @@ def test_summary_regenerates_with_its_confidence_intervals():
 
 
 @pytest.mark.parametrize("path", FILES, ids=IDS)
+def test_test_set_summary_regenerates_from_the_committed_run_rates(path):
+    """The committed ``test_summary.csv`` (the lidar rows of the README) is what the engine computes from the
+    committed per-run success rates, intervals and P(reference > configuration) included."""
+    experiment = read_experiment(str(path))
+    results = Path(experiment.results)
+    if not (results / "test_summary.csv").is_file():
+        pytest.skip("no test sets scored with these results")
+    expected = pd.read_csv(results / "test_summary.csv")
+    regenerated = scoring.summary(pd.read_csv(results / "test_runs.csv"), experiment.references(), experiment.bootstrap_reps)
+    assert list(regenerated.columns) == list(expected.columns)
+    numbers = [column for column in expected.columns if expected[column].dtype != object]
+    assert_same_columns(regenerated, expected, ["env", "test_set", "config", *numbers])
+    assert regenerated["reference"].fillna("").tolist() == expected["reference"].fillna("").tolist()
+
+
+@pytest.mark.parametrize("path", FILES, ids=IDS)
 def test_file_runs_end_to_end_on_a_tiny_budget(path):
     experiment = read_experiment(str(path))
     outcomes = run_experiment(experiment, workers=1, tiny=True)
@@ -115,6 +132,17 @@ figures: ../figures
         (("n_timesteps: 200", "n_timesteps: -5"), "n_timesteps"),
         (("bootstrap_reps: 100", "bootstrap_reps: 100\nbudget: 3"), "the file"),
         (("{episodes: 1, final_episodes: 2}", "{episodes: 0}"), "evaluation.episodes"),
+        (("figures: ../figures", "test_sets: [a, b]"), "test_sets"),
+        (("figures: ../figures", "test_sets: {plain: {episodes: 0}}"), "test_sets.plain.episodes"),
+        (("figures: ../figures", "test_sets: {plain: {model: last}}"), "test_sets.plain.model"),
+        (("figures: ../figures", "test_sets: {plain: {seeds: 3}}"), "test_sets.plain"),
+        (("figures: ../figures", "test_sets: {new: {layout_seeds: {start: 5, stop: 5}}}"), "test_sets.new.layout_seeds"),
+        (
+            ("figures: ../figures", "test_sets: {new: {layout_seeds: {start: 0, stop: 2}, courses: [a]}}"),
+            "test_sets.new.courses",
+        ),
+        (("figures: ../figures", "test_sets: {new: {env_kwargs: [1]}}"), "test_sets.new.env_kwargs"),
+        (("label: DDPG}", "label: DDPG, reference: td3}"), "configs.ddpg_small.reference"),
     ],
 )
 def test_bad_files_are_refused_naming_the_key(tmp_path, replace, key, capsys):
@@ -164,6 +192,43 @@ def test_cli_trains_resumes_and_reports(tmp_path, capsys):
     assert main(["experiment", str(path), "--report"]) == 0
     assert (results / "summary.csv").is_file()
     assert json.loads((results / "metadata.json").read_text()) == metadata
+
+
+def test_test_sets_score_each_finished_run_once(tmp_path, monkeypatch):
+    """Each finished run's final model plays the test set's episodes; a second invocation rescores nothing, and a
+    changed test set is scored again."""
+    import sb3_adc.experiment.test_sets as test_sets
+
+    text = GOOD.replace("figures: ../figures", "test_sets:\n  slow: {env_kwargs: {g: 5.0}, episodes: 2}")
+    path = write(tmp_path, text)
+    assert main(["experiment", str(path), "--workers", "1"]) == 0
+    results = tmp_path / "results" / "probe"
+    episodes = pd.read_csv(results / "test_episodes.csv")
+    assert len(episodes) == 2 * 2 * 2  # configurations x seeds x episodes
+    assert set(episodes.columns) >= {"config", "env", "seed", "test_set", "episode", "success", "return", "length", "hit"}
+    assert (episodes["length"] == 200).all()
+    assert not episodes["success"].any()
+    rates = pd.read_csv(results / "test_runs.csv")
+    assert len(rates) == 4
+    assert (rates["episodes"] == 2).all()
+    table = pd.read_csv(results / "test_summary.csv").set_index("config")
+    assert table.loc["ddpg_small", "reference"] == "adc_small"
+    assert table.loc["ddpg_small", "p_reference"] == 0.5
+    metadata = json.loads((results / "metadata.json").read_text())
+    assert metadata["test_sets"]["slow"] == {
+        "env_kwargs": {"g": 5.0},
+        "layout_seeds": None,
+        "courses": None,
+        "episodes": 2,
+        "model": "final",
+    }
+    calls = []
+    monkeypatch.setattr(test_sets, "score_run", lambda *args: calls.append(args) or [])
+    assert main(["experiment", str(path), "--workers", "1"]) == 0
+    assert calls == []
+    path.write_text(text.replace("5.0}, episodes: 2}", "5.0}, episodes: 3}"))
+    assert main(["experiment", str(path), "--workers", "1"]) == 0
+    assert len(calls) == 4
 
 
 def test_paths_are_relative_to_the_file(tmp_path):

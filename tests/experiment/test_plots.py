@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import importlib
 import itertools
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -174,49 +172,3 @@ def test_sb3_adc_plot_writes_profiles_and_probability_of_improvement(tmp_path, c
     assert "probability_of_improvement.png" in capsys.readouterr().out
     with pytest.raises(ValueError, match="no final returns"):
         plot_comparisons(pd.DataFrame(columns=["env", "algo", "seed", "mean_return"]), str(tmp_path))
-
-
-def test_trajectory_panels_show_each_course_and_count_the_collision_free_runs(tmp_path, saved_figures, monkeypatch):
-    from sb3_adc_envs.lidar_course import load_course
-
-    # The benchmark scripts' figure of the paths (benchmarks/trajectories.py), imported as the scripts do.
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    plot_trajectories = importlib.import_module("trajectories").plot_trajectories
-
-    course = load_course("unseen_posts")
-    start = np.array([course.start.x, course.start.y])
-
-    def path(algo: str, seed: int, success: bool, name: str) -> pd.DataFrame:
-        points = start + np.outer(np.arange(5), [0.1, 0.0])
-        frame = {"algo": algo, "seed": seed, "course": name, "step": np.arange(5), "x": points[:, 0], "y": points[:, 1]}
-        return pd.DataFrame({**frame, "success": success})
-
-    trajectories = pd.concat(
-        [
-            path("dqn", 0, True, "a"),
-            path("dqn", 1, False, "a"),
-            path("adc", 0, True, "a"),
-            path("adc", 1, True, "a"),
-            path("adc", 0, False, "b"),
-            path("adc", 1, False, "b"),
-            path("dqn", 0, True, "b"),
-            path("dqn", 1, True, "b"),
-        ]
-    )
-    plot_trajectories(trajectories, {"a": course, "b": course}, str(tmp_path / "paths.png"), title="paths")
-    assert (tmp_path / "paths.png").stat().st_size > 0
-    axes = saved_figures[-1].axes
-    titles = [ax.get_title() for ax in axes]
-    assert titles == [
-        "ADC, a\n2/2 runs collision-free",
-        "ADC, b\n0/2 runs collision-free",
-        "dueling DQN, 25 actions, a\n1/2 runs collision-free",
-        "dueling DQN, 25 actions, b\n2/2 runs collision-free",
-    ]
-    # Every wall segment and every obstacle of the course is drawn, and a crash is marked where the path ends.
-    first = axes[0]
-    walls = [line for line in first.get_lines() if line.get_color() == "0.2"]
-    assert len(walls) == len(course.walls)
-    assert len(first.patches) == len(course.obstacles) > 0
-    crashes = [line for line in axes[1].get_lines() if line.get_marker() == "x"]
-    assert [tuple(line.get_xydata()[-1]) for line in crashes] == [tuple(start + np.array([0.4, 0.0]))] * 2

@@ -35,8 +35,7 @@ def script_main(
         return module
 
     yield load
-    # The scripts import each other (budget_sweep uses procedural_generalisation): forget both.
-    for name in (*imported, "budget_sweep", "procedural_generalisation"):
+    for name in imported:
         sys.modules.pop(name, None)
 
 

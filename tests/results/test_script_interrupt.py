@@ -10,9 +10,7 @@ from sb3_adc.experiment.benchmark import INTERRUPTED, run_script
 
 # Each script that trains a grid, the engine entry it calls and arguments that reach it.
 SCRIPTS = [
-    ("budget_sweep", "run_benchmarks", ["--algo", "td3", "--seeds", "0"]),
     ("critic_diagnostics", "run_benchmark", ["--quick"]),
-    ("procedural_generalisation", "run_benchmark", ["--quick"]),
 ]
 
 
