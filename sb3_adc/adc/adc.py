@@ -145,11 +145,12 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
         of a local optimum of ``Q_1(s, .)`` that the gradient alone keeps it in. 0 (default): the paper's actor
         loss. Needs a critic design in ``GREEDY_CRITIC_DESIGNS``
     :param fast_update: Not in the paper, and not a change to what is learned: ``True`` trains with the fast update
-        path (opt-in until a 10-seed comparison shows the same learning; the committed results used the plain path), which changes float rounding only: fused Adam steps (unless ``optimizer_kwargs`` choose
-        ``foreach`` or ``fused``), the twin critics of the default ``"legendre"`` design evaluated as one batched
-        module (:mod:`sb3_adc.adc.stacked`), one Polyak update over all target parameters, and the losses kept as
-        tensors and logged once per :meth:`train` call. ``False`` (default): the plain path, one critic after the other,
-        per-parameter optimizer steps and Polyak updates (as SB3's TD3), kept to test the fast path against
+        path, which changes float rounding only (opt-in until a 10-seed comparison shows the same learning; the
+        committed results used the plain path): fused Adam steps (unless ``optimizer_kwargs`` choose ``foreach`` or
+        ``fused``), the twin critics of the default ``"legendre"`` design evaluated as one batched module
+        (:mod:`sb3_adc.adc.stacked`), one Polyak update over all target parameters, and the losses kept as tensors
+        and logged once per :meth:`train` call. ``False`` (default): the plain path, one critic after the other,
+        per-parameter optimizer steps and Polyak updates (as SB3's TD3)
     :param stats_window_size: Window size for the rollout logging, specifying the number of episodes to average
         the reported success rate, mean episode length, and mean reward over
     :param tensorboard_log: the log location for tensorboard (if None, no logging)
