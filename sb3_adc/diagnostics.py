@@ -315,8 +315,8 @@ class CriticDiagnosticsCallback(BaseCallback):
     :param batch_size: Size of the replay batch (an integer >= 1); ``None``: the model's ``batch_size``
     :param truncation_tolerance: Largest ``gamma^H`` of a step of a truncated episode used for the bias, in
         ``(0, 1]`` (see :func:`evaluate_critic`)
-    :param save_path: Folder to write the history to (``critic_diagnostics.npz`` and ``.csv``); ``None``: keep it
-        in memory only
+    :param save_path: Folder to write the history to (``critic_diagnostics.npz`` and ``.csv``); ``{seed}`` in it
+        stands for the model's seed, so that one setting serves every run of a grid; ``None``: keep it in memory only
     :param verbose: 1 to print the bias after each evaluation
     """
 
@@ -354,6 +354,7 @@ class CriticDiagnosticsCallback(BaseCallback):
     def _init_callback(self) -> None:
         _check_td3_family(self.model)
         if self.save_path is not None:
+            self.save_path = self.save_path.replace("{seed}", str(self.model.seed))
             os.makedirs(self.save_path, exist_ok=True)
 
     def _on_step(self) -> bool:

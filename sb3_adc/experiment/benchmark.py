@@ -25,14 +25,13 @@ import multiprocessing
 import os
 import re
 import signal
-import sys
 import threading
 import traceback
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from types import FrameType
-from typing import Any, NoReturn
+from typing import Any
 
 import yaml
 
@@ -575,22 +574,6 @@ def _run_jobs(
         BenchmarkResult(outcomes[folder], write_tables(outcomes[folder], settings.log_folder))
         for settings, folder in zip(grids, folders, strict=True)
     ]
-
-
-def run_script(main: Callable[[], int | None]) -> NoReturn:
-    """
-    Run a benchmark script's ``main`` and exit with its status. Ctrl-C ends the script as it ends
-    ``sb3-adc benchmark``: the runs in progress have saved their checkpoints, so it prints :data:`INTERRUPTED` and
-    exits with status 130 instead of a traceback.
-
-    :param main: The script's entry point (its return value, if any, is the exit status)
-    """
-    try:
-        status = main()
-    except KeyboardInterrupt:
-        print(f"\n{INTERRUPTED}", file=sys.stderr)
-        raise SystemExit(130) from None
-    raise SystemExit(status or 0)
 
 
 def write_tables(outcomes: list[RunOutcome], folder: str) -> dict[str, str]:

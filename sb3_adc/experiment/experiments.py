@@ -23,12 +23,15 @@ The file (read with the hyperparameter files' bounded YAML reader: nothing in it
     test_sets:                              # optional: held-out episodes that score each finished run (test_sets.py)
       held-out layouts: {env_kwargs: {start_position_jitter: 0.0}, layout_seeds: {start: 1000000, stop: 1000100}}
       unseen course files: {env_kwargs: {start_position_jitter: 0.1}, courses: [unseen_posts], episodes: 10}
+    diagnostics: {every: 2000, episodes: 5}  # optional, one env: each run logs the critic diagnostics
 
 Paths are relative to the file's folder. ``hyperparams`` is a folder of ``{algo}.yml`` files (default: the shipped
 ones); ``overrides`` are ``-params``. Each configuration is a benchmark grid in ``{runs}/{config}/``; the tables
 of all of them are merged with the configuration's name in the ``algo`` column. A test set (``model: best`` scores each
 run's ``best_model.zip`` instead of its final model) is scored after the training, resumably, into
 ``test_episodes.csv``, ``test_runs.csv`` and ``test_summary.{csv,md}`` (:mod:`sb3_adc.experiment.test_sets`).
+With ``diagnostics``, the runs' critic diagnostics go to ``diagnostics/`` and ``diagnostics_*.csv``
+(:func:`~sb3_adc.experiment.summary.write_diagnostics`).
 """
 
 from __future__ import annotations
@@ -67,9 +70,11 @@ KEYS = (
     "results",
     "figures",
     "test_sets",
+    "diagnostics",
 )
 CONFIG_KEYS = ("algo", "hyperparams", "overrides", "label", "reference")
 EVALUATION_KEYS = ("episodes", "final_episodes")
+DIAGNOSTICS_KEYS = ("every", "episodes")
 #: Bounds on a file's grid, so that a typo cannot ask for a million runs.
 MAX_CONFIGS, MAX_ENVS, MAX_SEEDS = 64, 16, 1000
 #: Budget and grid of ``--tiny``: the file's whole pipeline on one seed and one environment, in seconds.
@@ -120,6 +125,9 @@ class Experiment:
     :param results: Folder of the tables
     :param figures: Folder of the figures (``None``: none is kept)
     :param test_sets: Held-out test sets scoring each finished run (:mod:`~sb3_adc.experiment.test_sets`)
+    :param diagnostics: ``{every: steps, episodes: n}``: each run logs the critic diagnostics
+        (:class:`~sb3_adc.diagnostics.CriticDiagnosticsCallback`) every ``every`` steps with ``episodes``
+        evaluation rollouts (``None``: none)
     """
 
     name: str
@@ -138,6 +146,7 @@ class Experiment:
     results: str = ""
     figures: str | None = None
     test_sets: dict[str, TestSet] = field(default_factory=dict)
+    diagnostics: dict[str, int] | None = None
 
     def grids(self, tiny: bool = False, runs: str | None = None) -> dict[str, BenchmarkSettings]:
         """
@@ -153,7 +162,7 @@ class Experiment:
                 seeds=self.seeds[:1] if tiny else list(self.seeds),
                 log_folder=os.path.join(runs or self.runs, name),
                 n_timesteps=TINY_TIMESTEPS if tiny else self.n_timesteps,
-                overrides=dict(config.overrides),
+                overrides={**config.overrides, **self._diagnostics_callback(os.path.join(runs or self.runs, name), tiny)},
                 conf_folder=config.hyperparams,
                 eval_episodes=1 if tiny else self.eval_episodes,
                 final_eval_episodes=1 if tiny else self.final_eval_episodes,
@@ -161,6 +170,20 @@ class Experiment:
             )
             for name, config in self.configs.items()
         }
+
+    def _diagnostics_callback(self, folder: str, tiny: bool) -> dict[str, Any]:
+        """The ``callback`` override that logs the critic diagnostics of each run to ``{folder}/diagnostics/seed{seed}``."""
+        if self.diagnostics is None:
+            return {}
+        every = TINY_TIMESTEPS // 2 if tiny else self.diagnostics["every"]
+        kwargs = {
+            "eval_env": self.envs[0],
+            "eval_freq": every,
+            "log_freq": every,
+            "n_eval_episodes": 1 if tiny else self.diagnostics["episodes"],
+            "save_path": os.path.join(folder, "diagnostics", "seed{seed}"),
+        }
+        return {"callback": {"sb3_adc.diagnostics.CriticDiagnosticsCallback": kwargs}}
 
     def references(self) -> dict[str, str | None]:
         """Each configuration's reference on the test sets: its own, else the experiment's."""
@@ -208,6 +231,7 @@ class Experiment:
             f"final: {self.final_eval_episodes} deterministic episodes",
             "resolved": self.resolved(),
             **({"test_sets": {name: test.record() for name, test in self.test_sets.items()}} if self.test_sets else {}),
+            **({"diagnostics": dict(self.diagnostics)} if self.diagnostics else {}),
         }
 
 
@@ -293,6 +317,13 @@ def read_experiment(path: str) -> Experiment:
     reps, description = data.get("bootstrap_reps", 5000), data.get("description", "")
     _require(_int(reps, 100, 100_000), path, "bootstrap_reps", "must be an integer in 100-100000")
     _require(isinstance(description, str), path, "description", "must be a string")
+    diagnostics = data.get("diagnostics")
+    if diagnostics is not None:
+        _check_keys(diagnostics, DIAGNOSTICS_KEYS, path, "diagnostics")
+        _require(len(envs) == 1, path, "diagnostics", "needs exactly one env (its evaluation rollouts run on it)")
+        diagnostics = {"every": diagnostics.get("every", 1000), "episodes": diagnostics.get("episodes", 5)}
+        for key, value in diagnostics.items():
+            _require(_int(value, 1, 10**9 if key == "every" else 1000), path, f"diagnostics.{key}", "must be an integer >= 1")
     try:
         test_sets = read_test_sets(data.get("test_sets"))
     except TestSetError as error:
@@ -314,6 +345,7 @@ def read_experiment(path: str) -> Experiment:
         results=str(_folder(data.get("results", f"../results/{name}"), path, "results")),
         figures=_folder(data.get("figures"), path, "figures"),
         test_sets=test_sets,
+        diagnostics=diagnostics,
     )
 
 
@@ -369,6 +401,10 @@ def run_experiment(
                 }
                 test_sets = {name: test.tiny() if tiny else test for name, test in experiment.test_sets.items()}
                 score(finished, test_sets, output, workers or 1)
+            if experiment.diagnostics:
+                from sb3_adc.experiment.summary import write_diagnostics
+
+                write_diagnostics(experiment, runs or experiment.runs, output, None if tiny else experiment.figures)
             write_report(experiment, output, figures=None if tiny else experiment.figures, wall_time_s=elapsed)
     return outcomes
 

@@ -13,16 +13,18 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from sb3_adc.diagnostics import ARRAY_KEYS, HISTORY_CSV, load_history, plot_diagnostics
 from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CSV
 from sb3_adc.experiment.plots import plot_results
 from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc.experiment.results import read_table
-from sb3_adc.experiment.statistics import CONFIDENCE, _seeded_bootstrap, time_to_threshold
+from sb3_adc.experiment.statistics import CONFIDENCE, _seeded_bootstrap, final_performance, time_to_threshold
 from sb3_adc.experiment.test_sets import write_summary as write_test_summary
 from sb3_adc.extras import requires_extra
 
@@ -254,6 +256,62 @@ def write_report(experiment: Experiment, output: str, figures: str | None = None
             os.replace(figure, os.path.join(figures, f"{experiment.name}_{os.path.basename(figure)}"))
     if wall_time_s is not None:
         _write_metadata(experiment, output, wall_time_s)
+
+
+#: The critic diagnostics summarised with CIs over runs: the critic's bias, and ADC's advantage roughness.
+DIAGNOSTICS_CI_KEYS = ("eval/critic_bias", "eval/critic_bias_abs", "train/advantage_roughness")
+
+
+def diagnostics_summary(last_records: pd.DataFrame, reps: int) -> pd.DataFrame:
+    """
+    IQM and mean of each of :data:`DIAGNOSTICS_CI_KEYS` per configuration, with 95% stratified-bootstrap CIs over
+    runs (:func:`~sb3_adc.experiment.statistics.final_performance`).
+
+    :param last_records: One row per run: ``config``, ``seed`` and the last value of each diagnostic
+    :param reps: Bootstrap replications
+    :return: Columns ``metric``, ``config``, ``n_runs``, ``iqm``, ``iqm_ci_low`` ... ``mean_ci_high``
+    """
+    frames = []
+    for key in (key for key in DIAGNOSTICS_CI_KEYS if key in last_records.columns):  # ADC's are absent for DDPG
+        runs = last_records[["config", "seed", key]].dropna()
+        scores = runs.rename(columns={"config": "algo", key: "mean_return"}).assign(env=key)
+        frames.append(final_performance(scores, reps=reps).rename(columns={"env": "metric", "algo": "config"}))
+    return pd.concat(frames, ignore_index=True)
+
+
+def write_diagnostics(experiment: Experiment, runs: str, output: str, figures: str | None) -> None:
+    """
+    Collect the critic diagnostics that an experiment's runs logged (its ``diagnostics`` key) into ``output``:
+    each run's history as ``diagnostics/{config}_seed{seed}.csv``, the last record of each run as
+    ``diagnostics_last_records.csv``, :func:`diagnostics_summary` as ``diagnostics_summary.csv``, and the figure of
+    :func:`~sb3_adc.diagnostics.plot_diagnostics` as ``{figures}/{name}_diagnostics.png``.
+
+    :param experiment: The experiment
+    :param runs: Folder of its runs
+    :param output: Its results folder
+    :param figures: Folder of the figure (``None``: none is drawn)
+    """
+    os.makedirs(os.path.join(output, "diagnostics"), exist_ok=True)
+    histories: dict[str, list[Any]] = {}
+    rows = []
+    for name in experiment.configs:
+        for seed in experiment.seeds:
+            folder = os.path.join(runs, name, "diagnostics", f"seed{seed}")
+            if not os.path.isfile(os.path.join(folder, HISTORY_CSV)):
+                continue  # a run that failed, or the seeds a tiny run leaves out
+            history = load_history(folder)
+            histories.setdefault(name, []).append(history)
+            shutil.copy(os.path.join(folder, HISTORY_CSV), os.path.join(output, "diagnostics", f"{name}_seed{seed}.csv"))
+            last = {key: value for record in history for key, value in record.items() if key not in ARRAY_KEYS}
+            rows.append({"config": name, "seed": seed, **last})
+    table = pd.DataFrame(rows)
+    table.to_csv(os.path.join(output, "diagnostics_last_records.csv"), index=False)
+    summary_path = os.path.join(output, "diagnostics_summary.csv")
+    diagnostics_summary(table, experiment.bootstrap_reps).to_csv(summary_path, index=False)
+    if figures is not None:
+        os.makedirs(figures, exist_ok=True)
+        title = f"Critic diagnostics on {experiment.envs[0]} (seeds {experiment.seeds[0]}-{experiment.seeds[-1]})"
+        plot_diagnostics(histories, os.path.join(figures, f"{experiment.name}_diagnostics.png"), title=title)
 
 
 def _write_metadata(experiment: Experiment, output: str, wall_time_s: float) -> None:

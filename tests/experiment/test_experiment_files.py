@@ -15,7 +15,7 @@ import pytest
 from sb3_adc.cli import main
 from sb3_adc.experiment import test_sets as scoring
 from sb3_adc.experiment.experiments import ExperimentError, read_experiment, repository_root, run_experiment
-from sb3_adc.experiment.summary import summary
+from sb3_adc.experiment.summary import diagnostics_summary, summary
 
 ROOT = Path(__file__).resolve().parents[2]
 FILES = sorted((ROOT / "benchmarks" / "experiments").glob("*.yml"))
@@ -143,6 +143,9 @@ figures: ../figures
         ),
         (("figures: ../figures", "test_sets: {new: {env_kwargs: [1]}}"), "test_sets.new.env_kwargs"),
         (("label: DDPG}", "label: DDPG, reference: td3}"), "configs.ddpg_small.reference"),
+        (("figures: ../figures", "diagnostics: {every: 0}"), "diagnostics.every"),
+        (("figures: ../figures", "diagnostics: {every: 10, eval_env: x}"), "diagnostics"),
+        (("envs: [Pendulum-v1]", "envs: [Pendulum-v1, MountainCarContinuous-v0]\ndiagnostics: {}"), "diagnostics"),
     ],
 )
 def test_bad_files_are_refused_naming_the_key(tmp_path, replace, key, capsys):
@@ -258,3 +261,44 @@ def test_workers_out_of_range_are_refused_by_both_grid_commands(tmp_path, capsys
     assert "--workers must be between 1 and" in capsys.readouterr().err
     assert not (tmp_path / "b").exists()
     assert not (tmp_path / "runs").exists()
+
+
+def test_diagnostics_are_logged_per_run_and_summarised(tmp_path):
+    """With ``diagnostics``, every run logs its critic diagnostics to its own folder (one setting serves the grid's
+    seeds), and the experiment collects them: each run's history, the last records, the IQM with CIs, the figure."""
+    path = write(tmp_path, GOOD + "diagnostics: {every: 100, episodes: 1}\n")
+    experiment = read_experiment(str(path))
+    assert experiment.record(str(tmp_path))["diagnostics"] == {"every": 100, "episodes": 1}
+    outcomes = run_experiment(experiment, workers=1)
+    assert [outcome.status for outcome in outcomes] == ["trained"] * 4
+    results = tmp_path / "results" / "probe"
+    assert sorted(path.name for path in (results / "diagnostics").iterdir()) == [
+        f"{name}_seed{seed}.csv" for name in ("adc_small", "ddpg_small") for seed in (0, 1)
+    ]
+    history = pd.read_csv(results / "diagnostics" / "adc_small_seed1.csv")
+    assert history["timesteps"].tolist() == [100, 200]
+    last = pd.read_csv(results / "diagnostics_last_records.csv")
+    assert sorted(zip(last["config"], last["seed"], strict=True)) == [
+        ("adc_small", 0),
+        ("adc_small", 1),
+        ("ddpg_small", 0),
+        ("ddpg_small", 1),
+    ]
+    assert last["eval/critic_bias"].notna().all()
+    assert last.set_index("config")["train/advantage_roughness"].loc["ddpg_small"].isna().all()  # ADC only
+    summary = pd.read_csv(results / "diagnostics_summary.csv")
+    assert set(summary["metric"]) == {"eval/critic_bias", "eval/critic_bias_abs", "train/advantage_roughness"}
+    roughness = summary[summary["metric"] == "train/advantage_roughness"]
+    assert roughness["config"].tolist() == ["adc_small"]
+    assert roughness["n_runs"].tolist() == [2]
+    assert (tmp_path / "figures" / "probe_diagnostics.png").is_file()
+
+
+def test_diagnostics_summary_regenerates_from_the_committed_last_records():
+    """The committed ``diagnostics_summary.csv`` (the critic-designs page's diagnostics) is what the engine computes
+    from the committed last record of each run."""
+    experiment = read_experiment(str(ROOT / "benchmarks" / "experiments" / "noisy_pendulum_critics.yml"))
+    results = Path(experiment.results)
+    expected = pd.read_csv(results / "diagnostics_summary.csv")
+    regenerated = diagnostics_summary(pd.read_csv(results / "diagnostics_last_records.csv"), experiment.bootstrap_reps)
+    assert_same_columns(regenerated, expected, expected.columns)
