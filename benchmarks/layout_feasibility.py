@@ -8,7 +8,7 @@ The generator guarantees a gap wider than the robot (a flood fill); this checks 
 so that the success rates of ``benchmarks/experiments/lidar_course_v1.yml`` can be read against what is possible: a
 layout that reaches 500 steps has a collision-free episode, so a policy that crashes there failed to learn it.
 
-Writes ``benchmarks/results/procedural_generalisation/feasibility.csv`` (one row per layout or course),
+Writes ``benchmarks/results/lidar_course_v1_feasibility/feasibility.csv`` (one row per layout or course),
 ``feasibility.md`` and ``feasibility_metadata.json``.
 
 Usage::
@@ -35,7 +35,7 @@ from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS
 from sb3_adc_envs.lidar_course.passability import kinematic_reach
 
 ROOT = Path(__file__).resolve().parent
-OUTPUT = ROOT / "results" / "procedural_generalisation"
+OUTPUT = ROOT / "results" / "lidar_course_v1_feasibility"
 ENV_ID = "sb3_adc/LidarObstacleCourse-v1"
 
 

@@ -12,7 +12,7 @@ layouts and every course file, ``--course-episodes`` jittered episodes each, see
 variant and robot, and with a lidar of four rays per reading (``VARIANTS``). The planner is deterministic: one
 score per test set.
 
-Writes ``benchmarks/results/procedural_generalisation/reference_planner_selection.csv`` (the validation grid),
+Writes ``benchmarks/results/lidar_course_v1_feasibility/reference_planner_selection.csv`` (the validation grid),
 ``reference_planner.csv`` (one row per variant and test set), ``reference_planner.md`` and
 ``reference_planner_metadata.json``.
 
@@ -42,7 +42,7 @@ from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS, VALIDATION_LAYOUT_S
 from sb3_adc_envs.lidar_course.planner import LidarLocalPlanner
 
 ROOT = Path(__file__).resolve().parent
-RESULTS_DIR = ROOT / "results" / "procedural_generalisation"
+RESULTS_DIR = ROOT / "results" / "lidar_course_v1_feasibility"
 COURSES_DIR = ROOT.parent / "envs" / "courses"
 HELD_OUT = "held-out layouts"
 #: Start-pose jitter of the course-file episodes (the test sets of ``experiments/lidar_course_v1.yml``).
