@@ -22,14 +22,41 @@ import numpy as np
 from PIL import Image
 
 import sb3_adc  # noqa: F401 (registers the environments)
-from sb3_adc.experiment.plots import draw_course
-from sb3_adc_envs.lidar_course import load_course, shipped_courses
+from sb3_adc_envs.lidar_course import Course, load_course, shipped_courses
 from sb3_adc_envs.lidar_course.procedural import CourseGenerator
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+from matplotlib.axes import Axes
 
 OUT = Path(__file__).resolve().parent.parent / "_static" / "envs"
+
+
+def draw_course(ax: Axes, course: Course, title: str = "") -> None:
+    """
+    A lidar course seen from above: its walls, its obstacles (filled) and its start pose (an orange arrow).
+
+    :param ax: Where to draw
+    :param course: The course (a shipped file's, or a procedural layout's: ``env.unwrapped.course``)
+    :param title: The panel's title
+    """
+    for x0, y0, x1, y1 in course.walls:
+        ax.plot([x0, x1], [y0, y1], color="0.2", linewidth=1.4)
+    for obstacle in course.obstacles:
+        outline = obstacle.footprint()
+        ax.fill(outline[:, 0], outline[:, 1], color="tab:red", linewidth=0)
+    start = course.start
+    ax.annotate(
+        "",
+        xy=(start.x + 1.2 * math.cos(start.heading), start.y + 1.2 * math.sin(start.heading)),
+        xytext=(start.x, start.y),
+        arrowprops={"arrowstyle": "->", "color": "tab:orange", "linewidth": 1.5},
+    )
+    ax.plot(start.x, start.y, marker="o", color="tab:orange")
+    ax.set_title(title, fontsize=9)
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
 
 
 def draw_courses(path: Path) -> None:

@@ -1,7 +1,7 @@
 """
 Figures and tables of benchmark results: learning curves with 95% bootstrap CIs, across-run reward-variance
 curves (the ADC paper's Figures 5 and 8), final performance (IQM and mean with 95% stratified-bootstrap CIs),
-rliable's performance profiles and probability of improvement; lidar courses seen from above.
+rliable's performance profiles and probability of improvement.
 
 Needs the ``experiment`` extra (matplotlib, pandas, rliable).
 """
@@ -11,14 +11,10 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sb3_adc.extras import requires_extra
-
-if TYPE_CHECKING:
-    from sb3_adc_envs.lidar_course import Course
 
 with requires_extra("experiment", "the benchmark figures"):
     import pandas as pd
@@ -249,33 +245,6 @@ def plot_final_performance(performance: pd.DataFrame, path: str, quantity: str =
     figure.suptitle(f"{quantity.capitalize()}: IQM (o) and mean (s), 95% stratified-bootstrap CIs", fontsize="medium")
     figure.savefig(path, dpi=120)
     return path
-
-
-def draw_course(ax: Axes, course: Course, title: str = "") -> None:
-    """
-    A lidar course seen from above: its walls, its obstacles (filled) and its start pose (an orange arrow).
-
-    :param ax: Where to draw
-    :param course: The course (a shipped file's, or a procedural layout's: ``env.unwrapped.course``)
-    :param title: The panel's title
-    """
-    for x0, y0, x1, y1 in course.walls:
-        ax.plot([x0, x1], [y0, y1], color="0.2", linewidth=1.4)
-    for obstacle in course.obstacles:
-        outline = obstacle.footprint()
-        ax.fill(outline[:, 0], outline[:, 1], color="tab:red", linewidth=0)
-    start = course.start
-    ax.annotate(
-        "",
-        xy=(start.x + 1.2 * math.cos(start.heading), start.y + 1.2 * math.sin(start.heading)),
-        xytext=(start.x, start.y),
-        arrowprops={"arrowstyle": "->", "color": "tab:orange", "linewidth": 1.5},
-    )
-    ax.plot(start.x, start.y, marker="o", color="tab:orange")
-    ax.set_title(title, fontsize=9)
-    ax.set_aspect("equal")
-    ax.set_xticks([])
-    ax.set_yticks([])
 
 
 def plot_performance_profiles(profiles: pd.DataFrame, path: str) -> str:

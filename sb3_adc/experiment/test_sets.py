@@ -8,12 +8,12 @@ layout and seeded by it), ``courses`` (course files: ``episodes`` episodes each,
 course: no collision in 500 steps).
 
 Tables in the results folder: ``test_episodes.csv`` (one row per episode: ``config``, ``env``, ``seed``,
-``test_set``, ``episode``, ``success``, ``return``, ``length``, and on the lidar courses what a failed episode ended
-against, ``hit``, and whether the lidar had shown it in time, ``hit_unseen``, see :data:`SIGHTING`),
-``test_runs.csv`` (per run and test set: its success rate) and ``test_summary.{csv,md}`` (per environment, test set
-and configuration: IQM and mean success rate with 95% stratified-bootstrap CIs, P(reference > configuration)).
-Scoring is resumable: the runs whose rows were scored with the test set's current settings (``test_sets.json``) are
-kept.
+``test_set``, ``episode``, ``course`` (empty without ``courses``), ``success``, ``return``, ``length``, and on the
+lidar courses what a failed episode ended against, ``hit``, and whether the lidar had shown it in time,
+``hit_unseen``, see :data:`SIGHTING`), ``test_runs.csv`` (per run and test set: its success rate) and
+``test_summary.{csv,md}`` (per environment, test set and configuration: IQM and mean success rate with 95%
+stratified-bootstrap CIs, P(reference > configuration)). Scoring is resumable: the runs whose rows were scored with
+the test set's current settings (``test_sets.json``) are kept.
 """
 
 from __future__ import annotations
@@ -185,7 +185,8 @@ def score_run(run_dir: str, run: dict[str, Any], test_sets: dict[str, TestSet]) 
         for episode, (course, reset) in enumerate(resets):
             if course not in envs:
                 envs[course] = config.wrap_env(gym.make(run["env"], **{**kwargs, **({"course": course} if course else {})}))
-            rows.append({**run, "test_set": name, "episode": episode, **play_episode(model, envs[course], **reset)})
+            played = play_episode(model, envs[course], **reset)
+            rows.append({**run, "test_set": name, "episode": episode, "course": course, **played})
         for env in envs.values():
             env.close()
     return rows
