@@ -8,6 +8,8 @@ fresh process without importing torch or Stable-Baselines3.
 
 from __future__ import annotations
 
+import re
+import warnings
 from typing import Any
 
 import gymnasium as gym
@@ -54,8 +56,22 @@ ENV_SPECS: dict[str, dict[str, Any]] = {
 }
 
 
+#: Ids whose ``-v1`` is another task, not a newer version: ``-v0`` drives the fixed course files, ``-v1`` procedural
+#: layouts. Gymnasium takes a higher version of a name for an upgrade and warns at every ``gym.make`` of these ids
+#: that they are "out of date"; :func:`register_envs` silences that one warning for them (every other warning stays).
+CURRENT_V0_IDS = (f"{NAMESPACE}/LidarObstacleCourse-v0", f"{NAMESPACE}/LidarObstacleCourseNoisy-v0")
+
+
 def register_envs() -> None:
-    """Register every id of :data:`ENV_SPECS` with Gymnasium; ids already registered are left alone."""
+    """
+    Register every id of :data:`ENV_SPECS` with Gymnasium; ids already registered are left alone. Gymnasium's
+    "out of date" warning is silenced for the ids of :data:`CURRENT_V0_IDS`, which are current tasks.
+    """
     for env_id, spec_kwargs in ENV_SPECS.items():
         if env_id not in gym.registry:
             gym.register(id=env_id, **spec_kwargs)
+    for env_id in CURRENT_V0_IDS:
+        # Gymnasium's message starts with colour codes and "WARN: "; only the exact id's warning matches.
+        warnings.filterwarnings(
+            "ignore", message=rf".*The environment {re.escape(env_id)} is out of date\.", category=DeprecationWarning
+        )

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import tempfile
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -20,8 +24,31 @@ with requires_extra("envs", "the highway obstacle task"):
 
 from sb3_adc_envs.highway_obstacle.observation import RoadEdgeLidarObservation
 
+#: The most lanes of the road (``config["lanes_count"]``).
+MAX_LANES = 16
+#: The most rays of the observation (``config["observation"]["cells"]``): the observation's size, which sizes a
+#: replay buffer's memory.
+MAX_CELLS = 4096
 #: Steering range of the paper's navigation task: ±6 degrees.
 PAPER_STEERING_RANGE = (-math.radians(6.0), math.radians(6.0))
+
+
+@contextlib.contextmanager
+def _runtime_dir() -> Iterator[None]:
+    """
+    A private, empty ``XDG_RUNTIME_DIR`` while the block runs, where none is set: SDL (under pygame) looks for a
+    Wayland display there when it starts, and without the variable prints ``error: XDG_RUNTIME_DIR is invalid or not
+    set`` to the terminal although off-screen drawing needs no display.
+    """
+    if os.environ.get("XDG_RUNTIME_DIR"):
+        yield
+        return
+    with tempfile.TemporaryDirectory(prefix="sb3-adc-runtime-") as folder:
+        os.environ["XDG_RUNTIME_DIR"] = folder
+        try:
+            yield
+        finally:
+            del os.environ["XDG_RUNTIME_DIR"]
 
 
 class HighwayObstacleEnv(AbstractEnv):
@@ -120,15 +147,28 @@ class HighwayObstacleEnv(AbstractEnv):
     def _check_config(self) -> None:
         config = self.config
         lanes = config["lanes_count"]
-        if isinstance(lanes, bool) or not isinstance(lanes, int) or lanes < 2:
-            raise ValueError(f"config['lanes_count'] must be an integer >= 2, got {lanes!r}.")
+        if isinstance(lanes, bool) or not isinstance(lanes, int) or not 2 <= lanes <= MAX_LANES:
+            raise ValueError(f"config['lanes_count'] must be an integer in [2, {MAX_LANES}], got {lanes!r}.")
+        cells = config["observation"].get("cells", 16) if isinstance(config["observation"], dict) else None
+        if isinstance(cells, bool) or not isinstance(cells, int) or not 1 <= cells <= MAX_CELLS:
+            raise ValueError(f"config['observation']['cells'] must be an integer in [1, {MAX_CELLS}], got {cells!r}.")
+        numbers = ["ego_speed", "duration", "first_obstacle_distance", "step_reward", "collision_reward"]
+        for key in numbers:
+            value = config[key]
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"config['{key}'] must be a finite number, got {value!r} ({type(value).__name__}).")
         blocked = config["max_blocked_lanes"]
         if isinstance(blocked, bool) or not isinstance(blocked, int) or not 1 <= blocked < lanes:
             raise ValueError(
                 f"config['max_blocked_lanes'] must be an integer in [1, lanes_count - 1={lanes - 1}], got {blocked!r}."
             )
         gap = config["obstacle_gap"]
-        if len(gap) != 2 or not 0.0 < gap[0] <= gap[1]:
+        if (
+            not isinstance(gap, (list, tuple))
+            or len(gap) != 2
+            or any(isinstance(value, bool) or not isinstance(value, (int, float)) for value in gap)
+            or not 0.0 < gap[0] <= gap[1] < math.inf
+        ):
             raise ValueError(f"config['obstacle_gap'] must be [min, max] with 0 < min <= max [m], got {gap!r}.")
         for key in ("ego_speed", "duration", "first_obstacle_distance"):
             if not config[key] > 0.0:
@@ -175,7 +215,8 @@ class HighwayObstacleEnv(AbstractEnv):
     def render(self) -> np.ndarray | None:
         """highway-env's top view as a ``(height, width, 3)`` ``uint8`` array with ``render_mode="rgb_array"``."""
         if self.render_mode == "rgb_array" and getattr(self, "viewer", None) is None:
-            viewer = EnvViewer(self)
+            with _runtime_dir():  # quiet: SDL's probe for a display, which off-screen drawing does not need
+                viewer = EnvViewer(self)
             # highway-env draws nothing when SDL_VIDEODRIVER=dummy, a common headless setting; drawing off-screen
             # needs no display, so draw anyway.
             viewer.enabled = True

@@ -11,7 +11,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from sb3_adc_envs.lidar_course.course import Course, load_course
+from sb3_adc_envs.lidar_course.course import MAX_COURSE_SIDE, Course, load_course
 from sb3_adc_envs.lidar_course.geometry import LoopProgress
 from sb3_adc_envs.lidar_course.procedural import CourseGenerator
 from sb3_adc_envs.lidar_course.rendering import TopDownRenderer
@@ -27,6 +27,8 @@ TEST_LAYOUT_SEEDS = (1_000_000, 1_000_100)
 #: so that :data:`TEST_LAYOUT_SEEDS` stays unseen by every choice.
 VALIDATION_LAYOUT_SEEDS = (2_000_000, 2_000_100)
 
+#: The most lidar readings (``n_rays``): the observation's size, which sizes a replay buffer's memory.
+MAX_N_RAYS = 4096
 #: The most rays ``rays_per_reading`` casts for each reading (each costs about 5 microseconds a step).
 MAX_RAYS_PER_READING = 16
 # Initial capacity of the path buffer (positions); it doubles when full.
@@ -85,15 +87,17 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
     :param course: A shipped course name (``"training"``, ``"unseen_narrow"``, ... see
         :func:`~sb3_adc_envs.lidar_course.course.shipped_courses`), the path of a YAML/JSON course file,
         a :class:`~sb3_adc_envs.lidar_course.course.Course`, or ``"procedural"``
-    :param n_rays: Number of lidar rays (8 in the paper): the lidar's readings, one observation each
+    :param n_rays: Number of lidar rays (8 in the paper): the lidar's readings, one observation each, at most
+        :data:`MAX_N_RAYS`
     :param fov_deg: Angle the rays are spread over [deg], in ``(0, 360]``
     :param rays_per_reading: Rays cast for each reading, 1 (the default, the paper's lidar) to
         :data:`MAX_RAYS_PER_READING`: above 1, each reading is the nearest hit of that many rays spread evenly over
         its sector (the angle between neighbouring readings, centred on the reading's direction), so that an
         obstacle thinner than the gap between two readings' directions is not missed; the observation keeps one
         value per reading
-    :param max_range: Length of the rays [m]; observations are distances divided by it
-    :param speed: Distance driven per step [m]
+    :param max_range: Length of the rays [m], at most :data:`~sb3_adc_envs.lidar_course.course.MAX_COURSE_SIDE`;
+        observations are distances divided by it
+    :param speed: Distance driven per step [m], at most :data:`~sb3_adc_envs.lidar_course.course.MAX_COURSE_SIDE`
     :param max_steer_deg: Largest change of heading per step [deg] (6 in the paper); with the wheeled robot,
         the largest target turn rate, per step
     :param robot_radius: Radius of the robot [m] (at least 0.08 for the wheeled robot)
@@ -139,8 +143,24 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
                 "`course` must be a shipped course name (str), the path of a course file (str or os.PathLike), a Course, "
                 f"or {PROCEDURAL!r}; got {course!r} of type {type(course).__name__}."
             )
-        if isinstance(n_rays, bool) or not isinstance(n_rays, (int, np.integer)) or n_rays < 1:
-            raise ValueError(f"`n_rays` must be an integer >= 1, got {n_rays!r}.")
+        if isinstance(n_rays, bool) or not isinstance(n_rays, (int, np.integer)) or not 1 <= n_rays <= MAX_N_RAYS:
+            raise ValueError(f"`n_rays` must be an integer in [1, {MAX_N_RAYS}], got {n_rays!r}.")
+        numbers = {
+            "fov_deg": fov_deg,
+            "max_range": max_range,
+            "speed": speed,
+            "max_steer_deg": max_steer_deg,
+            "robot_radius": robot_radius,
+            "start_position_jitter": start_position_jitter,
+            "start_heading_jitter_deg": start_heading_jitter_deg,
+            "step_reward": step_reward,
+            "collision_reward": collision_reward,
+        }
+        for name, value in numbers.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+                raise TypeError(f"`{name}` must be a number, got {value!r} ({type(value).__name__}).")
+            if not math.isfinite(value):
+                raise ValueError(f"`{name}` must be a finite number, got {value!r}.")
         if not 0.0 < fov_deg <= 360.0:
             raise ValueError(f"`fov_deg` must be in (0, 360], got {fov_deg!r}.")
         if (
@@ -152,15 +172,21 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
                 f"`rays_per_reading` must be an integer in [1, {MAX_RAYS_PER_READING}], got {rays_per_reading!r}."
             )
         for name, value in (("max_range", max_range), ("speed", speed), ("robot_radius", robot_radius)):
-            if not (math.isfinite(value) and value > 0.0):
+            if not value > 0.0:
                 raise ValueError(f"`{name}` must be a finite number > 0, got {value!r}.")
+        for name, value in (("max_range", max_range), ("speed", speed)):
+            if value > MAX_COURSE_SIDE:
+                raise ValueError(
+                    f"`{name}` must be in (0, {MAX_COURSE_SIDE:g}] m (MAX_COURSE_SIDE, the largest course: a step or a "
+                    f"ray longer than that leaves every course), got {value!r}."
+                )
         if not 0.0 < max_steer_deg <= 180.0:
             raise ValueError(f"`max_steer_deg` must be in (0, 180], got {max_steer_deg!r}.")
         for name, value in (
             ("start_position_jitter", start_position_jitter),
             ("start_heading_jitter_deg", start_heading_jitter_deg),
         ):
-            if not (math.isfinite(value) and value >= 0.0):
+            if not value >= 0.0:
                 raise ValueError(f"`{name}` must be a finite number >= 0, got {value!r}.")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"`render_mode` must be None or one of {self.metadata['render_modes']}, got {render_mode!r}.")

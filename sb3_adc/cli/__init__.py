@@ -10,12 +10,21 @@ environments, ``ray``, ``video``, ``track``), it prints which extra to install a
 from __future__ import annotations
 
 import argparse
+import errno
 import sys
 from collections.abc import Sequence
 
 import sb3_adc
 from sb3_adc.config import HyperparamsError
 from sb3_adc.extras import MissingExtraError, missing_extra, requires_extra
+
+#: Errors of the machine's files that the user can act on (a full disk, a quota, no permission, a read-only file
+#: system, too many open files): exit status 2 with the file's name, not a traceback.
+FILE_SYSTEM_ERRNOS = frozenset(
+    getattr(errno, name)
+    for name in ("ENOSPC", "EDQUOT", "EFBIG", "EACCES", "EPERM", "EROFS", "EMFILE", "ENFILE", "ENAMETOOLONG", "EISDIR")
+    if hasattr(errno, name)
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -44,7 +53,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     :param argv: The command-line arguments
     :return: The exit status: 0 on success, 1 if benchmark runs failed or training diverged (NaN or inf), 2 for
-        invalid input or a missing extra, 130 when interrupted (Ctrl-C, or SIGTERM, handled the same way)
+        invalid input, a missing extra, a full disk or another file-system error of :data:`FILE_SYSTEM_ERRNOS`
+        (named with its file), or memory exhausted; 130 when interrupted (Ctrl-C, or SIGTERM, handled the same way)
     """
     try:
         parser = build_parser()
@@ -95,6 +105,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except RunInterrupted:
         return 130
+    except MemoryError as error:  # after the bounds of the options that size memory: a machine too small for the run
+        print(
+            f"sb3-adc {args.command}: error: out of memory ({error or 'MemoryError'}); the run needs more memory than "
+            "is free: lower buffer_size, batch_size, n_envs or the networks' sizes (policy_kwargs), or free memory",
+            file=sys.stderr,
+        )
+        return 2
+    except OSError as error:
+        if error.errno not in FILE_SYSTEM_ERRNOS:
+            raise
+        where = "" if error.filename is None else f"{error.filename}: "
+        print(f"sb3-adc {args.command}: error: {where}{error.strerror or error}", file=sys.stderr)
+        return 2
     except (TrainingDiverged, NonFiniteValue) as error:  # NonFiniteValue: outside training (enjoy)
         print(f"sb3-adc {args.command}: error: {error}", file=sys.stderr)
         return 1

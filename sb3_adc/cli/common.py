@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import importlib
 import random
+import re
+from typing import Any
 
 import torch as th
 
@@ -71,14 +73,33 @@ def apply_runtime_arguments(args: argparse.Namespace) -> None:
             ) from None
 
 
-def key_values(items: list[str] | None, option: str) -> dict[str, object]:
+#: A number with an exponent as YAML 1.2 writes it, which PyYAML (YAML 1.1) reads as a string: ``1e300``, ``1e-3``
+#: (without a dot) and ``2.5e3`` (without the exponent's sign). Other numbers YAML 1.1 reads as numbers already.
+_YAML_12_EXPONENT = re.compile(r"[-+]?(\.[0-9]+|[0-9]+(\.[0-9]*)?)[eE][-+]?[0-9]+")
+
+
+def _numbers_as_numbers(value: Any) -> Any:
+    """``value`` with every string written as a number (``1e300``, ``1e-3``) read as a float, in nested lists and maps."""
+    if isinstance(value, str) and _YAML_12_EXPONENT.fullmatch(value):
+        return float(value)
+    if isinstance(value, list):
+        return [_numbers_as_numbers(element) for element in value]
+    if isinstance(value, dict):
+        return {key: _numbers_as_numbers(element) for key, element in value.items()}
+    return value
+
+
+def key_values(items: list[str] | None, option: str) -> dict[str, Any]:
     """
-    ``key:value`` items of an option, each value read as YAML.
+    ``key:value`` items of an option, each value read as YAML, numbers as numbers: ``speed:1e300`` and
+    ``learning_rate:1e-3`` give floats (YAML 1.2's reading; PyYAML's YAML 1.1 gives strings without a dot).
 
     :param items: The items (``None``: none given)
     :param option: The option's name, for error messages
     """
-    return parse_overrides(items or [], source=f"command line {option}")
+    return {
+        key: _numbers_as_numbers(value) for key, value in parse_overrides(items or [], source=f"command line {option}").items()
+    }
 
 
 def resolve_seed(seed: int) -> int:

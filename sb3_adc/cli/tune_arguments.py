@@ -34,7 +34,7 @@ def add_tuning_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--n-trials", type=int, default=10, help="finished trials of the study, shipped entry included (default: 10)"
     )
-    group.add_argument("--n-jobs", type=int, default=1, help="worker processes (default: 1)")
+    group.add_argument("--n-jobs", type=int, default=1, help="worker processes, at most 2 per CPU (default: 1)")
     group.add_argument("--sampler", default="tpe", help=f"sampler: {', '.join(SAMPLER_NAMES)} (default: tpe)")
     group.add_argument("--pruner", default="median", help=f"pruner: {', '.join(PRUNER_NAMES)} (default: median)")
     group.add_argument(
@@ -52,8 +52,8 @@ def add_tuning_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--storage",
         default=None,
-        help="Optuna storage shared by workers and machines: a journal file (*.log) or a database URL "
-        "(default: LOG_FOLDER/tuning/STUDY/study.log)",
+        help="Optuna storage shared by workers and machines: a journal file (*.log) or a database URL, sqlite:///FILE, "
+        "mysql://... or postgresql://... (default: LOG_FOLDER/tuning/STUDY/study.log)",
     )
     group.add_argument("--study-name", default=None, help="study name (default: ALGO-ENV)")
     group.add_argument("--sampler-seed", type=int, default=0, help="seed of the sampler (default: 0)")

@@ -69,6 +69,15 @@ def _commit(temporary: str, target: str) -> None:
     _fsync_folder(os.path.dirname(target))
 
 
+def _name_target(error: BaseException, target: str) -> None:
+    """
+    Name ``target`` in an ``OSError`` of the system that names no file (a full disk fails a ``write`` or ``flush``,
+    which knows no name), so that its message says which file could not be written.
+    """
+    if isinstance(error, OSError) and error.errno is not None and error.filename is None:
+        error.filename = target
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike[str]) -> Iterator[str]:
     """
@@ -88,9 +97,10 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[str]:
     try:
         yield temporary
         _commit(temporary, target)
-    except BaseException:
+    except BaseException as error:
         with contextlib.suppress(FileNotFoundError):
             os.remove(temporary)
+        _name_target(error, target)
         raise
 
 
@@ -119,7 +129,8 @@ def write_atomically(path: str | os.PathLike[str], write: Callable[[IO[Any]], ob
             os.fsync(stream.fileno())
         os.replace(temporary, target)
         _fsync_folder(os.path.dirname(target))
-    except BaseException:
+    except BaseException as error:
         with contextlib.suppress(FileNotFoundError):
             os.remove(temporary)
+        _name_target(error, target)
         raise

@@ -8,6 +8,7 @@ key and the accepted values otherwise.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 from typing import Any
@@ -27,21 +28,25 @@ def _as_number(value: Any) -> float | None:
     return float(value)
 
 
-def integer(minimum: int | None = None, allowed: tuple[int, ...] = ()) -> Validator:
+def integer(minimum: int | None = None, allowed: tuple[int, ...] = (), maximum: int | None = None) -> Validator:
     """
-    An integer ``>= minimum`` (or one of ``allowed``); a float with an integer value (``1e5``) is accepted.
+    An integer ``>= minimum`` and ``<= maximum`` (or one of ``allowed``); a float with an integer value (``1e5``)
+    is accepted.
 
     :param minimum: The smallest accepted value
     :param allowed: Values accepted besides the range (such as ``-1`` for "all")
+    :param maximum: The largest accepted value (for options that size memory)
     """
-    accepted = "an integer" + ("" if minimum is None else f" >= {minimum}") + "".join(f" or {value}" for value in allowed)
+    low = "" if minimum is None else f" >= {minimum}"
+    high = "" if maximum is None else f" <= {maximum}"
+    accepted = "an integer" + low + ("," if low and high else "") + high + "".join(f" or {value}" for value in allowed)
 
     def check(value: Any, source: str, key: str) -> int:
         number = _as_number(value)
         if number is None or not math.isfinite(number) or number != int(number):
             raise _fail(value, source, key, accepted)
         result = int(number)
-        if result in allowed or minimum is None or result >= minimum:
+        if result in allowed or ((minimum is None or result >= minimum) and (maximum is None or result <= maximum)):
             return result
         raise _fail(value, source, key, accepted)
 
@@ -69,6 +74,32 @@ def real(minimum: float | None = None, maximum: float | None = None, exclusive_m
         if maximum is not None and number > maximum:
             raise _fail(value, source, key, accepted)
         return number
+
+    return check
+
+
+def layer_sizes(max_width: int, max_weights: int) -> Validator:
+    """
+    Hidden layer sizes (``net_arch``): a list of integers from 1 to ``max_width``, or a mapping of such lists (SB3's
+    ``dict(pi=[...], qf=[...])``), whose consecutive layers hold at most ``max_weights`` weights in all.
+
+    :param max_width: The most units of a layer
+    :param max_weights: The most weights between hidden layers (``sum(w[i] * w[i + 1])``) of each list
+    """
+    accepted = f"a list of layer sizes from 1 to {max_width} (or a mapping of such lists)"
+
+    def check(value: Any, source: str, key: str) -> Any:
+        if isinstance(value, dict):
+            return {name: check(sizes, source, f"{key}.{name}") for name, sizes in mapping(value, source, key).items()}
+        if not isinstance(value, (list, tuple)):
+            raise _fail(value, source, key, accepted)
+        sizes = [integer(1, maximum=max_width)(size, source, key) for size in value]
+        weights = sum(a * b for a, b in itertools.pairwise(sizes))
+        if weights > max_weights:
+            raise HyperparamsError(
+                source, key, f"expected at most {max_weights} weights between hidden layers, got {weights} for {sizes}"
+            )
+        return sizes
 
     return check
 

@@ -35,6 +35,7 @@ from sb3_adc.common.model_files import model_file_error, model_file_errors
 from sb3_adc.common.spaces import ActionSpaceError
 from sb3_adc.config import ExperimentConfig, HyperparamsError, load_hyperparams, resolve_entry
 from sb3_adc.config.loader import read_yaml_file
+from sb3_adc.config.schema import check_replay_buffer
 from sb3_adc.experiment.callbacks import checkpoint_damage
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
 from sb3_adc.experiment.evaluation import FinalEvaluation, success_unreported
@@ -267,11 +268,12 @@ def _check_before_run(settings: TrainSettings, config: ExperimentConfig) -> None
     try:
         try:
             # The algorithm's own checks of the spaces, without building the networks or the replay buffer.
-            config.algorithm_class(env=env, _init_setup_model=False, **config.model_kwargs)  # type: ignore[call-arg]
+            model = config.algorithm_class(env=env, _init_setup_model=False, **config.model_kwargs)  # type: ignore[call-arg]
         except ActionSpaceError:
             raise
         except AssertionError as error:  # SB3's check of `supported_action_spaces`
             raise SettingsError("env_id", f"must be an environment {settings.algo} can act in: {error}", "--env") from None
+        check_replay_buffer(model, config.source)  # its memory, before the run allocates it
         try:
             config.make_action_noise(env.action_space)
         except ValueError as error:

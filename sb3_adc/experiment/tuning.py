@@ -29,8 +29,10 @@ import itertools
 import math
 import multiprocessing
 import os
+import re
 import shutil
 import socket
+import stat
 import time
 import warnings
 from collections.abc import Mapping
@@ -81,10 +83,17 @@ OBJECTIVE_NAMES = ("return", "success")
 #: Bounds of a search space (``--search-space``): keys, and choices per key.
 MAX_SEARCH_KEYS = 32
 MAX_CHOICES = 32
+#: Workers (``--n-jobs``) per CPU at most: a worker trains on one thread and holds its own process (a few hundred
+#: MB); more workers than that only share the CPUs.
+MAX_JOBS_PER_CPU = 2
 #: User attributes: the shipped entry's trial, the worker running a trial, its folder (relative to the study's),
 #: the trial a continuation continues, and a trial stopped by Ctrl-C or a dead worker.
 _SHIPPED, _WORKER, _TRIAL_DIR, _CONTINUES, _INTERRUPTED = "shipped", "worker", "trial_dir", "continues", "interrupted"
 _refused = functools.partial(HyperparamsError, "command line")
+#: Database URL schemes (``dialect`` or ``dialect+driver``) Optuna's ``RDBStorage`` opens.
+DATABASE_DIALECTS = ("sqlite", "mysql", "postgresql")
+# The password of a database URL (`scheme://user:password@host/...`).
+_PASSWORD = re.compile(r"(?<=://)([^/@:]*):([^/@]*)@")
 
 
 @dataclass
@@ -166,6 +175,10 @@ class TuneSettings:
         ):
             if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
                 raise _refused(option, f"must be an integer >= {minimum}, got {value!r}")
+        max_jobs = MAX_JOBS_PER_CPU * (os.cpu_count() or 1)
+        if self.n_jobs > max_jobs:
+            per_cpu = f"{MAX_JOBS_PER_CPU} per CPU of this machine"
+            raise _refused("--n-jobs", f"must be an integer in [1, {max_jobs}] ({per_cpu}), got {self.n_jobs}")
         if self.n_timesteps is not None and self.n_timesteps < 1:
             raise _refused("--n-timesteps", f"must be >= 1, got {self.n_timesteps}")
         if not self.seeds or any(seed < 0 for seed in self.seeds) or len(set(self.seeds)) != len(self.seeds):
@@ -246,10 +259,11 @@ def tune(settings: TuneSettings) -> TuneResult:
         check_env_kwargs(settings.env_id, evaluation_kwargs, "eval_env_kwargs")
     if settings.objective == "success":
         check_success_reported(settings, config.wrap_env(gym.make(settings.env_id, **evaluation_kwargs)))
-    os.makedirs(settings.study_dir, exist_ok=True)
+    check_storage(settings.storage_url())
     if "://" not in settings.storage_url():
         repair_journal(settings.storage_url())
-    study = _open_study(settings, worker=0)
+    study = _open_study(settings, worker=0)  # a database it cannot open stops here, before the study's folder is made
+    os.makedirs(settings.study_dir, exist_ok=True)
     _fail_dead_trials(study)
     _continue_interrupted(study)
     if not any(trial.user_attrs.get(_SHIPPED) and trial.state != TrialState.FAIL for trial in study.trials):
@@ -590,12 +604,57 @@ def repair_journal(path: str) -> str | None:
     return copy
 
 
+def hide_password(text: str, url: str) -> str:
+    """
+    ``text`` with the password of the database URL ``url`` (``mysql://user:password@host/db``) replaced by ``***``.
+
+    :param text: A message that may show ``url`` or its password
+    :param url: The URL
+    """
+    match = _PASSWORD.search(url)
+    if match is None or not match.group(2):
+        return text
+    return text.replace(match.group(2), "***")
+
+
+def check_storage(url: str) -> None:
+    """
+    Check ``--storage`` before anything is written: a journal file that is a regular file or does not exist yet, or a
+    database URL of :data:`DATABASE_DIALECTS` (an SQLite file in an existing folder). Messages never show a password.
+
+    :param url: The storage (a path, or a URL with ``://``)
+    :raises HyperparamsError: naming ``--storage`` and what it accepts
+    """
+    shown = hide_password(url, url)
+    accepted = f"accepted: a journal file (*.log) or a database URL ({', '.join(f'{d}://...' for d in DATABASE_DIALECTS)})"
+    if "://" in url:
+        dialect = url.partition("://")[0].partition("+")[0]
+        if dialect not in DATABASE_DIALECTS:
+            raise _refused("--storage", f"{shown}: unknown database {dialect!r}; {accepted}")
+        if dialect != "sqlite":
+            return
+        path = url.partition("://")[2][1:]  # sqlite:///relative.db, sqlite:////absolute.db
+        if path in ("", ":memory:"):
+            raise _refused("--storage", f"{shown}: an SQLite database in memory cannot be shared or resumed; give a file")
+        what = "SQLite database file"
+    else:
+        path, what = url, "journal file"
+    folder = os.path.dirname(os.path.abspath(path))
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        mode = None
+    except OSError as error:
+        raise _refused("--storage", f"{shown}: cannot be read as a {what}: {error.strerror}") from None
+    if mode is not None and not stat.S_ISREG(mode):
+        kind = "a folder" if stat.S_ISDIR(mode) else "not a regular file"
+        raise _refused("--storage", f"{shown} is {kind}; it must be a {what}; {accepted}")
+    if what.startswith("SQLite") and not os.path.isdir(folder):
+        raise _refused("--storage", f"{shown}: the folder {folder} of the {what} does not exist")
+
+
 def _open_study(settings: TuneSettings, worker: int) -> optuna.Study:
     url = settings.storage_url()
-    storage: str | optuna.storages.BaseStorage = url  # a database: Optuna opens it (SQLAlchemy needed)
-    if "://" not in url:
-        os.makedirs(os.path.dirname(os.path.abspath(url)), exist_ok=True)
-        storage = optuna.storages.JournalStorage(JournalFileBackend(url))
     seed = settings.sampler_seed + worker
     sampler: optuna.samplers.BaseSampler = optuna.samplers.RandomSampler(seed=seed)
     if settings.sampler == "tpe":
@@ -605,6 +664,10 @@ def _open_study(settings: TuneSettings, worker: int) -> optuna.Study:
     zoo = cast(Any, SimpleNamespace(n_startup_trials=settings.n_startup_trials, n_evaluations=settings.n_evaluations))
     pruner = ExperimentManager._create_pruner(zoo, settings.pruner)
     try:
+        storage: str | optuna.storages.BaseStorage = url  # a database: Optuna opens it (SQLAlchemy needed)
+        if "://" not in url:
+            os.makedirs(os.path.dirname(os.path.abspath(url)), exist_ok=True)
+            storage = optuna.storages.JournalStorage(JournalFileBackend(url))
         return optuna.create_study(
             storage=storage,
             study_name=settings.name,
@@ -614,7 +677,15 @@ def _open_study(settings: TuneSettings, worker: int) -> optuna.Study:
             load_if_exists=True,
         )
     except ImportError as error:
-        raise _refused("--storage", f"{url}: {error} (a journal file `*.log` needs nothing)") from None
+        message = f"{url}: {error} (a journal file `*.log` needs nothing)"
+        raise _refused("--storage", hide_password(message, url)) from None
+    except Exception as error:
+        # A file that is no Optuna journal (JSON it cannot decode, records without its keys), or the database's own
+        # errors (SQLAlchemy's: no such server, access denied, not a database...).
+        if "://" not in url and not isinstance(error, (ValueError, LookupError, TypeError)):
+            raise
+        message = f"{url}: cannot open the study: {type(error).__name__}: {error}"
+        raise _refused("--storage", hide_password(message, url)) from None
 
 
 def _fail_dead_trials(study: optuna.Study) -> None:
