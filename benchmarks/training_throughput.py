@@ -18,7 +18,7 @@ Usage::
                                                         # ADC's fast update path against its plain path and
                                                         # SB3's TD3 and DDPG; writes training_throughput_fast.*
 
-The ``--fast-update`` mode times ADC with ``fast_update=True`` (the default) and ``False`` against SB3's TD3 and
+The ``--fast-update`` mode times ADC with ``fast_update=True`` and ``False`` (the default) against SB3's TD3 and
 DDPG with the update settings of the lidar ``-v1`` entries (``sb3_adc/LidarObstacleCourse-v1`` in
 ``hyperparams/adc.yml``: twin critics, policy delay 2, target smoothing, 3-step returns, ``tau=0.01``; ADC with its
 averaged actor), at the entries' networks and batch and at two larger ones. TD3 gets the same settings (its
