@@ -29,8 +29,6 @@ from typing import Any
 import gymnasium as gym
 import pandas as pd
 
-from sb3_adc.experiment.statistics import final_performance, probability_of_improvement
-
 #: Keys of one test set, and the models a test set can score.
 TEST_SET_KEYS = ("env_kwargs", "layout_seeds", "courses", "episodes", "model")
 MODELS = ("final", "best")
@@ -264,6 +262,9 @@ def summary(rates: pd.DataFrame, references: Mapping[str, str | None], reps: int
     :param references: Configuration -> the configuration it is compared with (``None``: none)
     :param reps: Bootstrap replications
     """
+    # Imported here: building the command line imports this module, and rliable comes with the `experiment` extra.
+    from sb3_adc.experiment.statistics import final_performance, probability_of_improvement
+
     frames = []
     for (env, test_set), group in rates.groupby(["env", "test_set"], sort=False):
         scores = group.sort_values("seed", kind="stable")[["config", "seed", "success_rate"]].assign(env=test_set)
