@@ -9,23 +9,19 @@ them (a key of the environment's entry replaces the default's value as a whole).
 :mod:`sb3_adc.config.expressions`: nothing from a file is executed or imported by name outside the
 allow-lists of :mod:`sb3_adc.config.allowlists`.
 
-Files are also bounded, so that a small hostile file cannot exhaust memory or time: at most
-:data:`MAX_FILE_BYTES` bytes, :data:`MAX_DEPTH` levels of nested collections, :data:`MAX_ALIASES` aliases
-(``*name``) and :data:`MAX_EXPANDED_VALUES` values once the aliases are expanded (an "alias bomb" of a few
-hundred bytes expands to billions). A file over a limit is rejected before anything is built from it, with a
-:class:`~sb3_adc.config.errors.HyperparamsError` that names the file and the limit.
+Files are also bounded, so that a small hostile file cannot exhaust memory or time
+(:mod:`sb3_adc.config.yaml_files`, whose limits this module's name stands for in error messages).
 """
 
 from __future__ import annotations
 
 import difflib
 import os
-from collections.abc import Hashable, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from importlib import resources
 from typing import Any
 
 import gymnasium as gym
-import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.utils import LinearSchedule
 
@@ -42,6 +38,14 @@ from sb3_adc.config.schema import (
     policy_kwargs_keys,
 )
 from sb3_adc.config.validators import Validator
+from sb3_adc.config.yaml_files import (  # noqa: F401 (the limits are named after this module in error messages)
+    MAX_ALIASES,
+    MAX_DEPTH,
+    MAX_EXPANDED_VALUES,
+    MAX_FILE_BYTES,
+    load_yaml_bounded,
+    read_yaml_file,
+)
 
 #: The package holding the shipped hyperparameter files.
 HYPERPARAMS_PACKAGE = "sb3_adc.hyperparams"
@@ -53,116 +57,6 @@ DEFAULT_ENTRY = "default"
 CLASS_VALUED_KWARGS = frozenset({"activation_fn", "features_extractor_class", "optimizer_class"})
 #: Keywords of ``VecNormalize`` accepted in ``normalize``.
 NORMALIZE_KEYS = frozenset({"norm_obs", "norm_reward", "clip_obs", "clip_reward", "gamma", "epsilon", "norm_obs_keys"})
-
-
-#: Largest hyperparameter file read, in bytes (the shipped files are a few kB; PyYAML reads about 100 kB/s).
-MAX_FILE_BYTES = 256 * 1024
-#: Deepest nesting of collections (mappings and lists) in a YAML document (an entry needs about 4).
-MAX_DEPTH = 32
-#: Most aliases (``*name``, merge keys ``<<: *name`` included) in a YAML document.
-MAX_ALIASES = 100
-#: Most values (scalars and collections) in a YAML document once its aliases are expanded.
-MAX_EXPANDED_VALUES = 100_000
-
-
-class _YamlLimitExceeded(yaml.YAMLError):
-    """A YAML document over one of the limits of this module (reported without the document's content)."""
-
-
-class _HyperparamsYamlLoader(yaml.SafeLoader):
-    """
-    ``yaml.SafeLoader`` that rejects duplicate keys in a mapping (the last one would win silently) and documents
-    over :data:`MAX_DEPTH`, :data:`MAX_ALIASES` or :data:`MAX_EXPANDED_VALUES`, while composing them (before any
-    Python object is built).
-    """
-
-    def __init__(self, stream: str) -> None:
-        super().__init__(stream)
-        self._depth = 0
-        self._aliases = 0
-
-    def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node | None:
-        if self.check_event(yaml.AliasEvent):
-            self._aliases += 1
-            if self._aliases > MAX_ALIASES:
-                mark = self.peek_event().start_mark
-                raise _YamlLimitExceeded(f"more than {MAX_ALIASES} aliases (line {mark.line + 1}); MAX_ALIASES={MAX_ALIASES}")
-            return super().compose_node(parent, index)
-        if not self.check_event(yaml.SequenceStartEvent, yaml.MappingStartEvent):
-            return super().compose_node(parent, index)
-        # A collection: one level deeper (PyYAML composes them recursively).
-        if self._depth >= MAX_DEPTH:
-            mark = self.peek_event().start_mark
-            raise _YamlLimitExceeded(
-                f"collections nested more than {MAX_DEPTH} levels deep (line {mark.line + 1}); MAX_DEPTH={MAX_DEPTH}"
-            )
-        self._depth += 1
-        try:
-            return super().compose_node(parent, index)
-        finally:
-            self._depth -= 1
-
-    def get_single_node(self) -> yaml.Node | None:
-        node = super().get_single_node()
-        if node is not None and self._aliases:
-            expanded = _expanded_size(node, {})
-            if expanded > MAX_EXPANDED_VALUES:
-                raise _YamlLimitExceeded(
-                    f"its aliases expand to {expanded} values, more than MAX_EXPANDED_VALUES={MAX_EXPANDED_VALUES}"
-                )
-        return node
-
-    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
-        seen: set[Any] = set()
-        for key_node, _ in node.value:
-            if key_node.tag == "tag:yaml.org,2002:merge":
-                continue
-            key = self.construct_object(key_node, deep=deep)
-            if not isinstance(key, Hashable):
-                continue  # SafeLoader reports unhashable keys
-            if key in seen:
-                raise yaml.constructor.ConstructorError(None, None, f"duplicate key {short_repr(key)}", key_node.start_mark)
-            seen.add(key)
-        return super().construct_mapping(node, deep=deep)
-
-
-def _expanded_size(node: yaml.Node, sizes: dict[int, int]) -> int:
-    """Number of values under ``node`` with every alias expanded; shared nodes are counted once per use, computed
-    once (``sizes``), so the count costs as much as the document as written. The depth is bounded by MAX_DEPTH."""
-    known = sizes.get(id(node))
-    if known is not None:
-        return known
-    size = 1
-    if isinstance(node, yaml.SequenceNode):
-        size += sum(_expanded_size(child, sizes) for child in node.value)
-    elif isinstance(node, yaml.MappingNode):
-        size += sum(_expanded_size(key, sizes) + _expanded_size(value, sizes) for key, value in node.value)
-    sizes[id(node)] = size
-    return size
-
-
-def load_yaml_bounded(text: str, source: str, key: str | None = None, what: str = "file") -> Any:
-    """
-    Read one YAML document with ``yaml.safe_load`` semantics, duplicate keys rejected, and the limits of this
-    module (:data:`MAX_DEPTH`, :data:`MAX_ALIASES`, :data:`MAX_EXPANDED_VALUES`; the caller bounds the length).
-
-    :param text: The document
-    :param source: Where it comes from (a file path, ``command line``), for error messages
-    :param key: The hyperparameter key it is the value of, if any, for error messages
-    :param what: What the document is (``file``, ``value``), for error messages
-    :return: The document's content
-    :raises HyperparamsError: if it is not valid YAML (or uses Python tags), or is over a limit; the message
-        never shows the document's content, whose representation may be huge
-    """
-    loader = _HyperparamsYamlLoader(text)
-    try:
-        return loader.get_single_data()
-    except _YamlLimitExceeded as error:
-        raise HyperparamsError(source, key, f"{what} is over a limit of sb3_adc.config.loader: {error}") from None
-    except yaml.YAMLError as error:
-        raise HyperparamsError(source, key, f"{what} is not valid YAML (Python tags are not accepted): {error}") from None
-    finally:
-        loader.dispose()
 
 
 def packaged_hyperparams_file(name: str) -> str:
@@ -200,29 +94,6 @@ def find_hyperparams_file(conf_file: str) -> str:
     raise HyperparamsError(
         conf_file, None, f"hyperparameter file not found (nor a shipped file: {', '.join(shipped_hyperparams_files())})"
     )
-
-
-def read_yaml_file(path: str) -> Any:
-    """
-    Read a YAML file within the limits of this module (:data:`MAX_FILE_BYTES`, :data:`MAX_DEPTH`,
-    :data:`MAX_ALIASES`, :data:`MAX_EXPANDED_VALUES`) with :func:`load_yaml_bounded`: the hyperparameter files,
-    and the ``config.yml`` and ``args.yml`` of a run.
-
-    :param path: The file (it must exist)
-    :return: The file's content
-    :raises HyperparamsError: if the file is not valid UTF-8 YAML or is over a limit
-    """
-    with open(path, "rb") as stream:
-        data = stream.read(MAX_FILE_BYTES + 1)
-    if len(data) > MAX_FILE_BYTES:
-        raise HyperparamsError(
-            path, None, f"file larger than {MAX_FILE_BYTES} bytes (MAX_FILE_BYTES of sb3_adc.config.loader)"
-        )
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as error:
-        raise HyperparamsError(path, None, f"not a UTF-8 text file ({error.reason} at byte {error.start})") from None
-    return load_yaml_bounded(text, path)
 
 
 def read_hyperparams_file(path: str) -> dict[str, Any]:
