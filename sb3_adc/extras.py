@@ -3,8 +3,8 @@ Optional dependencies: which extra of ``sb3-adc`` brings which package, and a cl
 
 The core install (``pip install sb3-adc``) is what ``ADC("MlpPolicy", env)`` needs: Stable-Baselines3, PyTorch,
 Gymnasium, NumPy and PyYAML. The robot environments, the ``sb3-adc`` command, its statistics and figures, Ray,
-video and tracking come with extras (``pip install "sb3-adc[envs,experiment]"``). Where such a package is
-imported, :func:`import_optional` (or :func:`requires_extra` around a block of imports) turns the
+video, tracking and Gymnasium's MuJoCo tasks come with extras (``pip install "sb3-adc[envs,experiment]"``). Where
+such a package is imported, :func:`import_optional` (or :func:`requires_extra` around a block of imports) turns the
 ``ModuleNotFoundError`` into a :class:`MissingExtraError` whose message names the extra to install.
 
 This module imports only the standard library, so that it can guard imports anywhere.
@@ -29,6 +29,7 @@ EXTRA_MODULES: dict[str, tuple[str, ...]] = {
     "ray": ("ray",),
     "video": ("imageio", "imageio_ffmpeg"),
     "track": ("wandb",),
+    "mujoco": ("mujoco",),
 }
 
 

@@ -28,16 +28,28 @@ def canonical(name: str) -> str:
     return re.sub(r"[-_.]+", "-", name).lower()
 
 
+def requirements(value: str) -> list[Requirement]:
+    lines = [line.split("#", 1)[0].strip() for line in value.splitlines()]
+    return [Requirement(line) for line in lines if line]
+
+
 def declared() -> tuple[set[str], dict[str, set[str]]]:
-    """The distributions of ``install_requires`` and of each extra, from setup.cfg."""
+    """
+    The distributions of ``install_requires`` and of each extra, from setup.cfg. An extra of a core distribution
+    (``gymnasium[mujoco]``) brings that distribution's optional packages, which the extra also names where the
+    code needs them: it is not counted as a second declaration of the core distribution.
+    """
     parser = configparser.ConfigParser()
     parser.read(ROOT / "setup.cfg")
+    core = {canonical(requirement.name) for requirement in requirements(parser["options"]["install_requires"])}
 
     def names(value: str) -> set[str]:
-        lines = [line.split("#", 1)[0].strip() for line in value.splitlines()]
-        return {canonical(Requirement(line).name) for line in lines if line}
+        return {
+            canonical(requirement.name)
+            for requirement in requirements(value)
+            if not (requirement.extras and canonical(requirement.name) in core)
+        }
 
-    core = names(parser["options"]["install_requires"])
     extras = {extra: names(value) for extra, value in parser["options.extras_require"].items()}
     return core, extras
 
@@ -120,6 +132,20 @@ def test_extra_modules_match_the_extras_of_setup_cfg():
     # `all` is every extra; the core is lean: no package of an extra is a core requirement.
     assert extras["all"] == set().union(*(extras[extra] for extra in extras if extra != "all"))
     assert not core & set().union(*(extras[extra] for extra in EXTRA_MODULES))
+
+
+def test_the_mujoco_extra_is_gymnasiums_with_mujoco_3():
+    parser = configparser.ConfigParser()
+    parser.read(ROOT / "setup.cfg")
+    by_name = {canonical(r.name): r for r in requirements(parser["options.extras_require"]["mujoco"])}
+    assert set(by_name) == {"gymnasium", "mujoco"}
+    assert by_name["gymnasium"].extras == {"mujoco"}
+    # mujoco 3, the version the constraints file pins (4 is a new major version, not checked).
+    pinned = re.search(r"^mujoco==(\S+)$", ROOT.joinpath("constraints.txt").read_text(encoding="utf-8"), re.MULTILINE)
+    assert pinned is not None
+    assert pinned.group(1) in by_name["mujoco"].specifier
+    assert "4.0.1" not in by_name["mujoco"].specifier
+    assert extras_providing("mujoco") == ("mujoco",)
 
 
 def test_the_core_install_runs_adc_without_any_extra():

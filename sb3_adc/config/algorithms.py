@@ -10,7 +10,8 @@ from sb3_adc.config.errors import HyperparamsError
 #: ``--algo`` name -> algorithm class. ``ddpg`` is SB3's DDPG with an optional ``critic_learning_rate`` and averaged
 #: actor (:class:`~sb3_adc.baselines.SplitRateDDPG`, identical to SB3's DDPG without them); ``td3`` is SB3's TD3 with an
 #: optional averaged actor (:class:`~sb3_adc.baselines.AveragedActorTD3`, ``policy_kwargs`` ``actor_average_tau``,
-#: identical to SB3's TD3 without it). Add your own with
+#: identical to SB3's TD3 without it); ``tqc`` and ``crossq`` are sb3-contrib's TQC and CrossQ (the ``zoo`` or
+#: ``experiment`` extra). Add your own with
 #: ``ALGORITHMS.add("name", AlgorithmClass)`` (and a ``name.yml`` hyperparameter file).
 ALGORITHMS = AllowList(
     "algorithm",
@@ -19,6 +20,8 @@ ALGORITHMS = AllowList(
         "ddpg": "sb3_adc.baselines:SplitRateDDPG",
         "td3": "sb3_adc.baselines:AveragedActorTD3",
         "sac": "stable_baselines3:SAC",
+        "tqc": "sb3_contrib:TQC",
+        "crossq": "sb3_contrib:CrossQ",
         "dqn": "stable_baselines3:DQN",
         "vanilla_ac": "sb3_adc.baselines:VanillaActorCritic",
     },
@@ -29,8 +32,8 @@ def get_algorithm(name: str, source: str = "command line", key: str = "--algo") 
     """
     The algorithm class of an ``--algo`` name.
 
-    :param name: The name (``adc``, ``ddpg``, ``td3``, ``sac``, ``dqn``, ``vanilla_ac``, or one added to
-        :data:`ALGORITHMS`)
+    :param name: The name (``adc``, ``ddpg``, ``td3``, ``sac``, ``tqc``, ``crossq``, ``dqn``, ``vanilla_ac``, or one
+        added to :data:`ALGORITHMS`)
     :param source: Where the name was read, for the error message
     :param key: The option or key that gave the name, for the error message
     :raises HyperparamsError: for an unknown name (the message lists the accepted ones)

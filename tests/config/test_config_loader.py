@@ -265,7 +265,7 @@ def test_bad_files(tmp_path, text, problem):
 
 
 def test_missing_file_and_shipped_file_names():
-    with pytest.raises(HyperparamsError, match=r"hyperparameter file not found \(nor a shipped file: adc, ddpg, dqn"):
+    with pytest.raises(HyperparamsError, match=r"hyperparameter file not found \(nor a shipped file: adc, crossq, ddpg, dqn"):
         load_hyperparams("adc", "Pendulum-v1", conf_file="/nonexistent/adc.yml")
     # A shipped file by name: here ddpg.yml's entry, trained with ADC.
     config = load_hyperparams("adc", "Pendulum-v1", conf_file="ddpg")

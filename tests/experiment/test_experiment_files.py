@@ -31,6 +31,8 @@ def test_there_are_experiment_files():
 def test_file_resolves_to_the_settings_recorded_with_its_results(path):
     """Re-running the file trains what its committed results were trained with (entries, overrides, grid)."""
     experiment = read_experiment(str(path))
+    if not Path(experiment.results).is_dir():
+        pytest.skip(f"not run yet: no results committed in {Path(experiment.results).relative_to(ROOT)}")
     metadata = json.loads((Path(experiment.results) / "metadata.json").read_text())
     record = json.loads(json.dumps(experiment.record(repository_root(experiment))))
     assert {key: record[key] for key in RECORDED} == {key: metadata[key] for key in RECORDED}
