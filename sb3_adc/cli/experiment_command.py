@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 
 from sb3_adc.cli.benchmark_command import add_backend_arguments, check_backend_arguments, run_with_progress
 from sb3_adc.cli.common import apply_runtime_arguments
 from sb3_adc.config import check_env_id
 from sb3_adc.experiment.experiments import read_experiment, run_experiment
-from sb3_adc.experiment.summary import write_report
+from sb3_adc.experiment.layout import FolderLock
 
 DESCRIPTION = """\
 Run the experiment a YAML file describes (its format: sb3_adc.experiment.experiments, and the files
@@ -26,6 +27,10 @@ examples:
   sb3-adc experiment benchmarks/experiments/noisy_pendulum_shipped.yml --report   # redraw, no training
   sb3-adc experiment benchmarks/experiments/noisy_pendulum_shipped.yml --tiny     # does the file run?
 """
+
+
+#: What the holder of a results folder's lock may be doing, for the error of ``--report`` when it is in use.
+REPORT_ACTIVITY = "running the experiment or writing its report"
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -63,7 +68,14 @@ def run(args: argparse.Namespace) -> int:
     for env_id in experiment.envs:
         check_env_id(env_id)
     if args.report:
-        write_report(experiment, experiment.results, figures=experiment.figures)
+        from sb3_adc.experiment.summary import write_report  # rliable: only the commands that need it import it
+
+        # The results folder's lock, which an invocation training the experiment holds too: a report cannot read
+        # tables half rewritten, nor write its files between a running experiment's. A folder that does not exist
+        # has no tables (the report says so) and nothing to lock.
+        lock = FolderLock(experiment.results, REPORT_ACTIVITY) if os.path.isdir(experiment.results) else None
+        with lock or contextlib.nullcontext():
+            write_report(experiment, experiment.results, figures=experiment.figures)
         print(f"Wrote the summary and figures of {experiment.name} in {experiment.results}")
         return 0
     experiment.resolved()  # every configuration's entries, checked before anything runs

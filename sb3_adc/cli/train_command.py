@@ -20,6 +20,7 @@ from sb3_adc.cli.common import (
     resolve_seed,
 )
 from sb3_adc.cli.tune_arguments import TUNING_HELP, add_tuning_arguments, run_tuning
+from sb3_adc.common.safe_load import UnsafeModelFileError
 from sb3_adc.config import check_env_id
 from sb3_adc.experiment import TrainSettings, find_run, resume, train
 from sb3_adc.experiment.settings import BEST_MODEL_METRICS
@@ -131,6 +132,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="RUN_DIR",
         help="continue a run from its last checkpoint: RUN_DIR, or (without value) the latest run of --algo on --env",
     )
+    parser.add_argument(
+        "--trust-model-file",
+        action="store_true",
+        help="unpickle the model of -i (and the replay buffer saved with it) or, with --resume, the run's checkpoint "
+        "as SB3 does, which runs any code they hold (default: a safe load that builds only known classes and refuses "
+        "the rest)",
+    )
     add_runtime_arguments(parser)
     tracking = parser.add_argument_group("tracking (--track, the track extra)")
     tracking.add_argument(
@@ -157,6 +165,15 @@ _NEW_RUN_OPTIONS = {
 def _given(args: argparse.Namespace) -> list[str]:
     """The options of :data:`_NEW_RUN_OPTIONS` given on the command line."""
     return [option for name, option in _NEW_RUN_OPTIONS.items() if getattr(args, name)]
+
+
+@contextlib.contextmanager
+def refusing_unsafe_files() -> Iterator[None]:
+    """Turn a safe load's refusal of a model file or run-folder pickle into a command error (exit status 2)."""
+    try:
+        yield
+    except UnsafeModelFileError as error:
+        raise CommandError(f"{error} (with --trust-model-file the file is unpickled: do so only if you trust it)") from error
 
 
 @contextlib.contextmanager
@@ -213,8 +230,14 @@ def run(args: argparse.Namespace) -> int:
             run_dir = find_run(args.log_folder, args.algo, args.env)
         else:
             run_dir = args.resume
-        with tracking(TrainSettings.of_run(run_dir)):
-            resume(run_dir, n_timesteps=args.n_timesteps, progress_bar=progress_bar, verbose=args.verbose)
+        with refusing_unsafe_files(), tracking(TrainSettings.of_run(run_dir)):
+            resume(
+                run_dir,
+                n_timesteps=args.n_timesteps,
+                progress_bar=progress_bar,
+                verbose=args.verbose,
+                trust_model_file=args.trust_model_file,
+            )
         return 0
     if args.algo is None or args.env is None:
         raise CommandError("--algo and --env are required (or --resume RUN_DIR)")
@@ -247,6 +270,6 @@ def run(args: argparse.Namespace) -> int:
         wandb_entity=args.wandb_entity,
         best_model_metric=args.best_model_metric or "return",
     )
-    with tracking(settings):
-        train(settings)
+    with refusing_unsafe_files(), tracking(settings):
+        train(settings, trust_model_file=args.trust_model_file)
     return 0

@@ -12,6 +12,11 @@ noises, torch activations and optimizers, and this package's own classes) and re
 by value included, with a :class:`UnsafeModelFileError` naming the entry and what it needs. The objects go to SB3's
 ``load`` as ``custom_objects``, so that SB3 unpickles nothing. The restriction is the one ``torch.load`` applies
 with ``weights_only=True``; cloudpickle itself has no such mode.
+
+The pickles of a run folder (a checkpoint's replay buffer, ``VecNormalize`` statistics and continuation) are read
+the same way by :func:`restricted_load`, each with an allow-list of exactly the globals such a file holds when
+sb3-adc writes it (:data:`REPLAY_BUFFER_GLOBALS`, :data:`VEC_NORMALIZE_GLOBALS`, and the continuation's in
+:mod:`sb3_adc.experiment.continuation`): a file planted in a run folder is refused, not run.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ import json
 import pathlib
 import pickle
 import zipfile
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -69,21 +75,95 @@ ALLOWED: dict[str, frozenset[str]] = {
 }
 #: Packages all of whose classes (not functions) a safe load may build.
 ALLOWED_PACKAGES = ("sb3_adc", "sb3_adc_envs")
-#: Modules of SB3 whose policy, buffer and noise classes (subclasses of :data:`SB3_BASES`) a safe load may build.
+#: The package of SB3, whose policy, buffer and noise classes (subclasses of ``BasePolicy``, ``BaseBuffer`` and
+#: ``ActionNoise``) a safe load may build.
 SB3_PACKAGE = "stable_baselines3"
+#: Packages whose policy, buffer and noise classes a safe load may build: SB3's and SB3-Contrib's (``tqc`` and
+#: ``crossq`` are SB3-Contrib's algorithms).
+SB3_PACKAGES = (SB3_PACKAGE, "sb3_contrib")
+
+
+def _merge(*lists: Mapping[str, frozenset[str]]) -> dict[str, frozenset[str]]:
+    merged: dict[str, frozenset[str]] = {}
+    for names in lists:
+        for module, members in names.items():
+            merged[module] = merged.get(module, frozenset()) | members
+    return merged
+
+
+#: numpy's arrays, scalars, dtypes and random generators, as every pickle of a run holds them (numpy 2's module
+#: names and numpy 1's).
+NUMPY_GLOBALS: dict[str, frozenset[str]] = {
+    module: names for module, names in ALLOWED.items() if module == "numpy" or module.startswith("numpy.")
+}
+#: Gymnasium's spaces (a replay buffer and ``VecNormalize`` keep the environment's).
+SPACE_GLOBALS: dict[str, frozenset[str]] = {
+    module: names for module, names in ALLOWED.items() if module.startswith("gymnasium.spaces.")
+}
+#: Harmless constructors of Python's own types that a pickle may name.
+BUILTIN_GLOBALS: dict[str, frozenset[str]] = {
+    "builtins": ALLOWED["builtins"],
+    "collections": ALLOWED["collections"],
+}
+#: The globals of a replay buffer saved by SB3's ``save_replay_buffer`` (a checkpoint's
+#: ``rl_model_replay_buffer_{t}_steps.pkl``, the RL Zoo's ``replay_buffer.pkl``): SB3's buffer classes, numpy,
+#: the spaces and the buffer's ``torch.device``.
+REPLAY_BUFFER_GLOBALS: dict[str, frozenset[str]] = _merge(
+    NUMPY_GLOBALS,
+    SPACE_GLOBALS,
+    BUILTIN_GLOBALS,
+    {
+        "torch": frozenset({"device"}),
+        "stable_baselines3.common.buffers": frozenset({"ReplayBuffer", "DictReplayBuffer", "NStepReplayBuffer"}),
+    },
+)
+#: The globals of ``VecNormalize`` statistics (a checkpoint's ``rl_model_vecnormalize_{t}_steps.pkl``, a run's
+#: ``vecnormalize.pkl``): ``VecNormalize`` without its environments, its ``RunningMeanStd``, numpy and the spaces.
+VEC_NORMALIZE_GLOBALS: dict[str, frozenset[str]] = _merge(
+    NUMPY_GLOBALS,
+    SPACE_GLOBALS,
+    BUILTIN_GLOBALS,
+    {
+        "stable_baselines3.common.running_mean_std": frozenset({"RunningMeanStd"}),
+        "stable_baselines3.common.vec_env.vec_normalize": frozenset({"VecNormalize"}),
+    },
+)
+#: The tensors of a pickle (PyTorch's random states in a continuation): rebuilt from their storage, which pickle
+#: keeps as ``torch.save`` bytes read back with ``torch.load(weights_only=True)`` (see :data:`_SUBSTITUTES`).
+TENSOR_GLOBALS: dict[str, frozenset[str]] = {
+    "torch._utils": frozenset({"_rebuild_tensor_v2"}),
+    "torch.storage": frozenset({"_load_from_bytes"}),
+}
+
+
+def _storage_from_bytes(data: bytes) -> Any:
+    """PyTorch's ``torch.storage._load_from_bytes`` (``torch.load(weights_only=False)``), restricted to weights."""
+    import torch as th
+
+    return th.load(io.BytesIO(data), weights_only=True)
+
+
+#: Globals built by a function of our own instead of the one the pickle names: the same result, without the
+#: unrestricted unpickling inside.
+_SUBSTITUTES: dict[tuple[str, str], Callable[..., Any]] = {("torch.storage", "_load_from_bytes"): _storage_from_bytes}
 
 
 class UnsafeModelFileError(pickle.UnpicklingError, ValueError):
     """
     A model file that a safe load refuses: an entry would run or import code outside :data:`ALLOWED` (a
-    ``ValueError``, as the other errors of a model file that cannot be loaded are).
+    ``ValueError``, as the other errors of a model file that cannot be loaded are). Also raised for a pickle of a run
+    folder that needs a global outside its allow-list (:func:`restricted_load`).
     """
+
+
+class DamagedEntryError(UnsafeModelFileError):
+    """An entry of a model zip's ``data`` that does not unpickle at all (a damaged file rather than a refused one)."""
 
 
 def _allowed(module: str, name: str, value: Any) -> bool:
     if name in ALLOWED.get(module, frozenset()):
         return True
-    if module.startswith(f"{SB3_PACKAGE}.") and isinstance(value, type):
+    if any(module.startswith(f"{package}.") for package in SB3_PACKAGES) and isinstance(value, type):
         from stable_baselines3.common.buffers import BaseBuffer
         from stable_baselines3.common.noise import ActionNoise
         from stable_baselines3.common.policies import BasePolicy
@@ -94,8 +174,22 @@ def _allowed(module: str, name: str, value: Any) -> bool:
 
 
 class _RestrictedUnpickler(pickle.Unpickler):
+    """
+    An unpickler that builds only allow-listed globals: ``allowed`` (``module -> names``, nothing else), or by
+    default those of a model zip (:data:`ALLOWED`, and the classes :func:`_allowed` accepts).
+    """
+
+    def __init__(self, file: Any, allowed: Mapping[str, frozenset[str]] | None = None):
+        super().__init__(file)
+        self._globals = allowed
+
     def find_class(self, module: str, name: str) -> Any:
-        if module in ALLOWED or module.split(".")[0] in (*ALLOWED_PACKAGES, SB3_PACKAGE):
+        if self._globals is not None:
+            if name not in self._globals.get(module, frozenset()):
+                raise UnsafeModelFileError(f"{module}.{name}")
+            substitute = _SUBSTITUTES.get((module, name))
+            return substitute if substitute is not None else super().find_class(module, name)
+        if module in ALLOWED or module.split(".")[0] in (*ALLOWED_PACKAGES, *SB3_PACKAGES):
             # Importing an allow-listed module runs only the installed code of numpy, gymnasium, SB3, torch or
             # this package; the name is then checked against the list.
             value = super().find_class(module, name)
@@ -116,9 +210,8 @@ def _entry(key: str, item: dict[str, Any], name: str) -> Any:
             "`safe=False` only if you trust whoever made the file: that unpickles it, which can run any code."
         ) from None
     except (binascii.Error, pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError, IndexError) as error:
-        raise UnsafeModelFileError(
-            f"{name}: the entry `{key}` of its `data` is damaged ({type(error).__name__}: {error})"
-        ) from None
+        reason = f"{type(error).__name__}: {error}"
+        raise DamagedEntryError(f"{name}: the entry `{key}` of its `data` is damaged ({reason})") from None
 
 
 def safe_objects(path: str | pathlib.Path | io.BufferedIOBase, custom_objects: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -130,6 +223,7 @@ def safe_objects(path: str | pathlib.Path | io.BufferedIOBase, custom_objects: d
     :param path: The model zip (or a file-like, rewound afterwards)
     :param custom_objects: The caller's objects, used instead of the file's entries of the same names
     :raises UnsafeModelFileError: naming the entry and the class or function it would need
+    :raises DamagedEntryError: for an entry that does not unpickle (an ``UnsafeModelFileError`` too)
     :raises zipfile.BadZipFile: for a file that is not a zip
     :raises KeyError: for a zip without a ``data`` entry
     """
@@ -153,24 +247,67 @@ def safe_objects(path: str | pathlib.Path | io.BufferedIOBase, custom_objects: d
     return {**objects, **given}
 
 
-def load_vec_normalize(path: str, venv: VecEnv) -> VecNormalize:
+def load_objects(path: str, trust: bool = False) -> dict[str, Any] | None:
+    """
+    The ``custom_objects`` for SB3's ``load`` (or ``load_from_zip_file``) of the model zip at ``path``:
+    :func:`safe_objects`, or ``None`` when the file is trusted (SB3 unpickles it) or too damaged to read its ``data``
+    (not a zip, no ``data``, not JSON): SB3's load then fails on that same damage before it unpickles anything, with
+    the error every load gives.
+
+    :param path: The model zip
+    :param trust: Unpickle the file as SB3 does (which runs any code it holds)
+    :raises UnsafeModelFileError: for an entry outside the safe load's allow-list (unless ``trust``)
+    """
+    if trust:
+        return None
+    try:
+        return safe_objects(path)
+    except UnsafeModelFileError:
+        raise
+    except (OSError, zipfile.BadZipFile, KeyError, ValueError):
+        return None
+
+
+def restricted_load(path: str, allowed: Mapping[str, frozenset[str]], what: str) -> Any:
+    """
+    Unpickle the file at ``path``, building only the globals of ``allowed``: a file that needs any other is refused
+    before anything of it is built, so it runs no code.
+
+    :param path: The pickle
+    :param allowed: ``module -> names`` it may build
+    :param what: What the file should hold, for the message (e.g. ``"a replay buffer"``)
+    :raises UnsafeModelFileError: for a file that needs another global, naming it
+    :raises Exception: whatever unpickling a damaged (truncated, corrupted) file raises, as ``pickle.load`` does
+    """
+    with open(path, "rb") as stream:
+        try:
+            return _RestrictedUnpickler(stream, allowed).load()
+        except DamagedEntryError:
+            raise
+        except UnsafeModelFileError as error:
+            raise UnsafeModelFileError(
+                f"{path} is not {what} as sb3-adc writes it: unpickling it needs `{error}`, which such a file never "
+                "holds, so it was refused and nothing of it was run (a file planted or replaced by someone else, or "
+                "written by other code). Unpickle it only if you trust whoever wrote it: it could run any code."
+            ) from None
+
+
+def load_vec_normalize(path: str | VecNormalize, venv: VecEnv) -> VecNormalize:
     """
     SB3's ``VecNormalize.load`` without running code from the file: the statistics pickle is read with the restricted
-    unpickler (a run's ``vecnormalize.pkl`` holds a ``VecNormalize``, its ``RunningMeanStd`` and numpy arrays).
+    unpickler (a run's ``vecnormalize.pkl`` holds a ``VecNormalize``, its ``RunningMeanStd`` and numpy arrays:
+    :data:`VEC_NORMALIZE_GLOBALS`).
 
-    :param path: The saved statistics
+    :param path: The saved statistics, or statistics read already (e.g. by a checkpoint's check), which are used
     :param venv: The environments to wrap
-    :raises UnsafeModelFileError: for a file that needs anything else
+    :raises UnsafeModelFileError: for a file that needs anything else, or holds no ``VecNormalize``
     """
     from stable_baselines3.common.vec_env import VecNormalize
 
-    with open(path, "rb") as stream:
-        try:
-            normalize = _RestrictedUnpickler(stream).load()
-        except UnsafeModelFileError as error:
-            raise UnsafeModelFileError(
-                f"{path} is not VecNormalize statistics a safe load reads: it needs `{error}`"
-            ) from None
+    if isinstance(path, VecNormalize):
+        normalize = path
+    else:
+        normalize = restricted_load(path, VEC_NORMALIZE_GLOBALS, "VecNormalize statistics")
     if not isinstance(normalize, VecNormalize):
         raise UnsafeModelFileError(f"{path} holds a {type(normalize).__name__}, not VecNormalize statistics")
     normalize.set_venv(venv)

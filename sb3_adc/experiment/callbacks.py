@@ -1,8 +1,9 @@
 """
 Callbacks of a training run: periodic evaluation and checkpoints that a resumed run continues seamlessly.
 
-Every file a resume reads is written atomically (:mod:`sb3_adc.common.atomic`), and :func:`checkpoint_damage`
-tells whether a checkpoint on disk can be resumed from.
+Every file a resume reads is written atomically (:mod:`sb3_adc.common.atomic`), and :func:`read_checkpoint`
+reads a checkpoint on disk once, telling whether it can be resumed from and giving what a resume loads, without
+running code from any of its files.
 """
 
 from __future__ import annotations
@@ -13,12 +14,21 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 from stable_baselines3.common.save_util import load_from_pkl
-from stable_baselines3.common.vec_env import VecEnv
+from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from sb3_adc.common.atomic import atomic_path, write_atomically
-from sb3_adc.experiment.continuation import Continuation
+from sb3_adc.common.safe_load import (
+    REPLAY_BUFFER_GLOBALS,
+    VEC_NORMALIZE_GLOBALS,
+    DamagedEntryError,
+    UnsafeModelFileError,
+    restricted_load,
+    safe_objects,
+)
+from sb3_adc.experiment.continuation import CONTINUATION_GLOBALS, Continuation
 from sb3_adc.experiment.divergence import check_finite_weights
 from sb3_adc.experiment.evaluation import success_rate
 from sb3_adc.experiment.layout import CHECKPOINT_PREFIX, Checkpoint, DamagedFileError, RunLayout
@@ -320,30 +330,108 @@ class CheckpointSaver(CheckpointCallback):
             old.remove()
 
 
-def checkpoint_damage(checkpoint: Checkpoint) -> str | None:
+class DamagedCheckpoint(ValueError):
+    """A checkpoint that cannot be resumed from: a file is missing, truncated or corrupted (the message says which)."""
+
+
+@dataclass
+class CheckpointContents:
     """
-    Why a checkpoint cannot be resumed from, or ``None`` if it can: its model zip must open with intact
-    members (CRC checked) and its replay buffer, ``VecNormalize`` statistics and continuation, where present, must
-    unpickle.
+    A checkpoint read by :func:`read_checkpoint`: what a resume loads, each file read once.
+
+    :param checkpoint: Its files
+    :param model_objects: The ``custom_objects`` that load its model zip without unpickling anything
+        (:func:`~sb3_adc.common.safe_load.safe_objects`); ``None`` when trusted (SB3 unpickles the zip)
+    :param replay_buffer: Its replay buffer (``None`` where it has none)
+    :param vecnormalize: Its ``VecNormalize`` statistics, without environments (``None`` where it has none)
+    :param continuation: Its continuation (``None`` where it has none, or one of another version)
+    """
+
+    checkpoint: Checkpoint
+    model_objects: dict[str, Any] | None = None
+    replay_buffer: Any = None
+    vecnormalize: VecNormalize | None = None
+    continuation: Continuation | None = None
+
+
+def read_checkpoint(checkpoint: Checkpoint, trust: bool = False) -> CheckpointContents:
+    """
+    Read a checkpoint to resume from, and tell whether it can be: its model zip must open with intact members (CRC
+    checked) and an SB3 model's ``data``; its replay buffer, ``VecNormalize`` statistics and continuation, where
+    present, must unpickle. Nothing of the files runs code: the model's entries are built from the safe load's
+    allow-list (:func:`~sb3_adc.common.safe_load.safe_objects`), each pickle from the allow-list of what sb3-adc
+    writes in such a file (:data:`~sb3_adc.common.safe_load.REPLAY_BUFFER_GLOBALS`,
+    :data:`~sb3_adc.common.safe_load.VEC_NORMALIZE_GLOBALS`,
+    :data:`~sb3_adc.experiment.continuation.CONTINUATION_GLOBALS`).
 
     :param checkpoint: The checkpoint
+    :param trust: Unpickle its files as SB3 does, which can run any code they hold (a run folder one trusts that
+        holds objects outside the allow-lists, e.g. a custom environment's in its infos)
+    :raises DamagedCheckpoint: for a missing model zip or a damaged file, naming it
+    :raises UnsafeModelFileError: for a file that needs a class or function outside its allow-list (a file planted
+        in the run folder, or written by other code): refused, not run, and not taken for damage
     """
+    name = os.path.basename(checkpoint.model)
     if not os.path.isfile(checkpoint.model):
-        return f"{os.path.basename(checkpoint.model)} is missing"
+        raise DamagedCheckpoint(f"{name} is missing")
     try:
         with zipfile.ZipFile(checkpoint.model) as archive:
             broken = archive.testzip()
             names = archive.namelist()
     except (OSError, zipfile.BadZipFile, EOFError, ValueError) as error:
-        return f"{os.path.basename(checkpoint.model)} does not open as a zip ({error})"
+        raise DamagedCheckpoint(f"{name} does not open as a zip ({error})") from None
     if broken is not None:
-        return f"{os.path.basename(checkpoint.model)}: member {broken} is corrupted"
+        raise DamagedCheckpoint(f"{name}: member {broken} is corrupted")
     if "data" not in names:
-        return f"{os.path.basename(checkpoint.model)} holds no SB3 model (no `data` member)"
-    for path in checkpoint.files[1:]:  # the pickles beside the model zip
-        if os.path.isfile(path):
-            try:
-                load_from_pkl(path)
-            except Exception as error:  # unpickling a damaged file can raise almost anything
-                return f"{os.path.basename(path)} does not unpickle ({type(error).__name__}: {error})"
+        raise DamagedCheckpoint(f"{name} holds no SB3 model (no `data` member)")
+    contents = CheckpointContents(checkpoint)
+    if not trust:
+        try:
+            contents.model_objects = safe_objects(checkpoint.model)
+        except DamagedEntryError as error:
+            raise DamagedCheckpoint(str(error)) from None
+        except UnsafeModelFileError:
+            raise
+        except (OSError, zipfile.BadZipFile, KeyError, ValueError) as error:  # JSON and UTF-8 errors are ValueErrors
+            raise DamagedCheckpoint(f"{name}: its `data` does not read ({type(error).__name__}: {error})") from None
+    globals_of = {
+        checkpoint.replay_buffer: (REPLAY_BUFFER_GLOBALS, "a replay buffer"),
+        checkpoint.vecnormalize: (VEC_NORMALIZE_GLOBALS, "VecNormalize statistics"),
+        checkpoint.continuation: (CONTINUATION_GLOBALS, "a continuation"),
+    }
+    loaded: dict[str, Any] = {}
+    for path, (allowed, what) in globals_of.items():
+        if not os.path.isfile(path):
+            continue
+        try:
+            loaded[path] = load_from_pkl(path) if trust else restricted_load(path, allowed, what)
+        except UnsafeModelFileError:
+            raise
+        except Exception as error:  # unpickling a damaged file can raise almost anything
+            raise DamagedCheckpoint(f"{os.path.basename(path)} does not unpickle ({type(error).__name__}: {error})") from None
+    contents.replay_buffer = loaded.get(checkpoint.replay_buffer)
+    if contents.replay_buffer is not None and not isinstance(contents.replay_buffer, ReplayBuffer):
+        raise DamagedCheckpoint(f"{os.path.basename(checkpoint.replay_buffer)} holds no replay buffer")
+    statistics = loaded.get(checkpoint.vecnormalize)
+    if statistics is not None and not isinstance(statistics, VecNormalize):
+        raise DamagedCheckpoint(f"{os.path.basename(checkpoint.vecnormalize)} holds no VecNormalize statistics")
+    contents.vecnormalize = statistics
+    if checkpoint.continuation in loaded:
+        contents.continuation = Continuation.accept(loaded[checkpoint.continuation])
+    return contents
+
+
+def checkpoint_damage(checkpoint: Checkpoint, trust: bool = False) -> str | None:
+    """
+    Why a checkpoint cannot be resumed from, or ``None`` if it can (:func:`read_checkpoint`, whose content is
+    dropped: a resume keeps it instead).
+
+    :param checkpoint: The checkpoint
+    :param trust: As for :func:`read_checkpoint`
+    :raises UnsafeModelFileError: for a file outside the allow-lists, as :func:`read_checkpoint`
+    """
+    try:
+        read_checkpoint(checkpoint, trust)
+    except DamagedCheckpoint as error:
+        return str(error)
     return None

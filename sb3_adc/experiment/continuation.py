@@ -15,6 +15,9 @@ Not exact, and resumed on a new random stream as before: checkpoints saved on Ct
 interruption fell), checkpoints of older versions, runs with ``frame_stack`` or other stateful ``VecEnv`` wrappers,
 gSDE exploration, and rollouts that a periodic checkpoint cuts (``train_freq`` longer than one step, which the
 checkpoint does not fall at the end of).
+
+A continuation is read back with an unpickler that builds only what one holds (:data:`CONTINUATION_GLOBALS`), so a
+file planted in a run folder runs no code (:func:`~sb3_adc.common.safe_load.restricted_load`).
 """
 
 from __future__ import annotations
@@ -34,8 +37,19 @@ from stable_baselines3.common.type_aliases import TrainFreq
 from stable_baselines3.common.utils import should_collect_more_steps
 from stable_baselines3.common.vec_env import VecCheckNan, VecEnv, VecEnvWrapper, VecNormalize, unwrap_vec_normalize
 
+from sb3_adc.common.safe_load import BUILTIN_GLOBALS, NUMPY_GLOBALS, TENSOR_GLOBALS, restricted_load
+
 #: Version of the continuation format (a file of another version is not used).
 CONTINUATION_VERSION = 1
+
+#: The globals a continuation file holds: its own classes, numpy's arrays, scalars and generator states, PyTorch's
+#: random states (tensors) and the environments' infos (dicts of numbers and arrays).
+CONTINUATION_GLOBALS: dict[str, frozenset[str]] = {
+    **BUILTIN_GLOBALS,
+    **NUMPY_GLOBALS,
+    **TENSOR_GLOBALS,
+    __name__: frozenset({"Continuation", "EpisodeRecord", "PendingStep"}),
+}
 
 #: ``VecEnv`` wrappers whose state a continuation restores (``VecCheckNan`` keeps none that matters).
 _RESTORABLE_VEC_WRAPPERS = (VecCheckNan, VecNormalize)
@@ -276,17 +290,28 @@ class Continuation:
         save_to_pkl(path, self)
 
     @classmethod
-    def load(cls, path: str) -> Continuation | None:
+    def load(cls, path: str, trust: bool = False) -> Continuation | None:
         """
         Read a continuation; ``None`` if the file holds another version's.
 
         :param path: The file
+        :param trust: Unpickle it as SB3 unpickles its files, which can run any code (default: build only
+            :data:`CONTINUATION_GLOBALS`)
+        :raises UnsafeModelFileError: for a file that needs anything else (without ``trust``)
         :raises Exception: whatever unpickling a damaged file raises (checked first by ``checkpoint_damage``)
         """
-        continuation = load_from_pkl(path)
-        if not isinstance(continuation, cls) or getattr(continuation, "version", None) != CONTINUATION_VERSION:
+        return cls.accept(load_from_pkl(path) if trust else restricted_load(path, CONTINUATION_GLOBALS, "a continuation"))
+
+    @classmethod
+    def accept(cls, loaded: object) -> Continuation | None:
+        """
+        The continuation an unpickled file holds, or ``None`` if it holds another version's (or something else).
+
+        :param loaded: The unpickled object
+        """
+        if not isinstance(loaded, cls) or getattr(loaded, "version", None) != CONTINUATION_VERSION:
             return None
-        return continuation
+        return loaded
 
     def restore(self, model: OffPolicyAlgorithm, eval_env: VecEnv | None, remaining: int) -> None:
         """

@@ -100,7 +100,9 @@ def make_run_envs(
     )
 
 
-def wrap_vec_env(config: ExperimentConfig, venv: VecEnv, training: bool, statistics: str | None = None) -> VecEnv:
+def wrap_vec_env(
+    config: ExperimentConfig, venv: VecEnv, training: bool, statistics: str | VecNormalize | None = None
+) -> VecEnv:
     """
     Wrap ``venv`` in :class:`~sb3_adc.experiment.divergence.FiniteCheck` (SB3's ``VecCheckNan``: an error at the
     first NaN or inf), then ``VecNormalize`` and ``VecFrameStack`` if the config asks for them (the RL Zoo's order).
@@ -111,7 +113,7 @@ def wrap_vec_env(config: ExperimentConfig, venv: VecEnv, training: bool, statist
     :param config: The resolved hyperparameters
     :param venv: The environments
     :param training: Whether the statistics are updated and rewards normalized (``False`` for evaluation)
-    :param statistics: A saved ``VecNormalize`` to load the statistics from
+    :param statistics: A saved ``VecNormalize`` to load the statistics from (a file, or one read already)
     """
     # Inside VecNormalize: a NaN is caught before it spoils the statistics, and named as the environment gave it.
     venv = FiniteCheck(venv, "training" if training else "evaluation")

@@ -10,6 +10,8 @@ hyperparameters, creates the log folder, the callbacks, the environments and the
   buffer, ``VecNormalize`` statistics, timestep count, exploration-noise state and the evaluations so far, and
   its continuation (random generators, episodes in progress, the step in progress:
   :mod:`sb3_adc.experiment.continuation`), so that the resumed run is the run it continues;
+- no code from a file: the model to continue (``-i``), its replay buffer and a checkpoint's files are read with
+  restricted unpicklers (:mod:`sb3_adc.common.safe_load`) unless the caller trusts them (``trust_model_file``);
 - checkpoints and evaluations written atomically, on the timestep count, so a resumed run evaluates and saves at
   the timesteps an uninterrupted one would (:mod:`sb3_adc.experiment.callbacks`);
 - a checkpoint on Ctrl-C, an error naming the first NaN or inf, and a final evaluation of its own seeds.
@@ -31,21 +33,33 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
 
+import numpy as np
 import yaml
 from gymnasium import spaces
 from rl_zoo3.exp_manager import ExperimentManager
 from rl_zoo3.utils import ALGOS
 from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
-from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
+from stable_baselines3.common.save_util import load_from_pkl
+from stable_baselines3.common.vec_env import VecEnv, VecNormalize, sync_envs_normalization
+from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
 from tqdm import TqdmExperimentalWarning
 
 from sb3_adc.common.atomic import atomic_path, write_atomically
-from sb3_adc.common.model_files import loading_model, model_file_errors
+from sb3_adc.common.model_files import loading_model, model_file_error, model_file_errors
+from sb3_adc.common.safe_load import REPLAY_BUFFER_GLOBALS, UnsafeModelFileError, load_objects, restricted_load
 from sb3_adc.config import ALGORITHMS, ExperimentConfig
-from sb3_adc.experiment.callbacks import CheckpointSaver, EvaluationHistory, PeriodicEvalCallback, StopRequested
+from sb3_adc.experiment.callbacks import (
+    CheckpointContents,
+    CheckpointSaver,
+    EvaluationHistory,
+    PeriodicEvalCallback,
+    StopRequested,
+    read_checkpoint,
+)
 from sb3_adc.experiment.continuation import Continuation
 from sb3_adc.experiment.divergence import NonFiniteValue, NonFiniteWeights, TrainingDiverged, check_finite_weights
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
@@ -88,6 +102,11 @@ class RunManager(ExperimentManager):
     :param config: The resolved hyperparameters (the run's ``config.yml``)
     :param checkpoint: The checkpoint to resume from (``None``: a new run, or a run started again from scratch)
     :param callbacks: Callbacks called after the run's own, e.g. the pruning callback of a tuning trial
+    :param contents: The checkpoint's files, read already (by the check that chose it: each file is read once);
+        ``None``: read here
+    :param trust_model_file: Unpickle the model to continue (``-i``), its replay buffer and statistics, and the
+        checkpoint's files as SB3 does, which can run any code they hold (default: restricted unpicklers, which
+        refuse with :class:`~sb3_adc.common.safe_load.UnsafeModelFileError` a file that needs more)
     """
 
     def __init__(
@@ -96,6 +115,8 @@ class RunManager(ExperimentManager):
         config: ExperimentConfig,
         checkpoint: Checkpoint | None = None,
         callbacks: Sequence[BaseCallback] = (),
+        contents: CheckpointContents | None = None,
+        trust_model_file: bool = False,
     ):
         register_algorithms()
         assert settings.run_dir is not None, "the run folder is chosen before the manager is made"
@@ -104,6 +125,8 @@ class RunManager(ExperimentManager):
         self.layout = RunLayout(settings.run_dir, settings.env_id)
         self.checkpoint = checkpoint
         self.extra_callbacks = list(callbacks)
+        self.trust_model_file = trust_model_file
+        self._contents = contents if contents is not None and contents.checkpoint == checkpoint else None
         super().__init__(
             args=argparse.Namespace(**dataclasses.asdict(settings)),
             algo=settings.algo,
@@ -233,22 +256,27 @@ class RunManager(ExperimentManager):
         :meth:`learn`; a checkpoint without one goes on from a new random stream), or continue
         training a saved model (``-i``) as the Zoo does: its policy and weights, the run's other hyperparameters,
         the replay buffer saved with it (the Zoo's ``replay_buffer.pkl``, or a checkpoint's own), and a timestep
-        count starting at 0, so the run trains ``n_timesteps`` more.
+        count starting at 0, so the run trains ``n_timesteps`` more. No file runs code unless
+        ``trust_model_file`` (see the class).
         """
         algorithm_class: type[Any] = self.experiment.algorithm_class
         if self.checkpoint is not None:
+            contents = self._checkpoint_contents()
             with loading_model():
                 model = algorithm_class.load(
-                    self.checkpoint.model, env=env, device=self.device, tensorboard_log=self.tensorboard_log
+                    self.checkpoint.model,
+                    env=env,
+                    device=self.device,
+                    tensorboard_log=self.tensorboard_log,
+                    custom_objects=contents.model_objects,
                 )
             model.verbose = self.verbose
-            if os.path.isfile(self.checkpoint.replay_buffer) and hasattr(model, "load_replay_buffer"):
-                model.load_replay_buffer(self.checkpoint.replay_buffer)
-            if os.path.isfile(self.checkpoint.continuation):
-                continuation = Continuation.load(self.checkpoint.continuation)
-                # Another checkpoint's (a file copied by hand) would continue another point of the run.
-                if continuation is not None and continuation.timesteps == model.num_timesteps:
-                    self.continuation = continuation
+            if contents.replay_buffer is not None and hasattr(model, "load_replay_buffer"):
+                _use_replay_buffer(model, contents.replay_buffer)
+            continuation = contents.continuation
+            # Another checkpoint's (a file copied by hand) would continue another point of the run.
+            if continuation is not None and continuation.timesteps == model.num_timesteps:
+                self.continuation = continuation
             if self.continuation is None:
                 # A new random stream: the resumed part does not replay the first part's draws.
                 print(
@@ -259,14 +287,39 @@ class RunManager(ExperimentManager):
                 model.set_random_seed(self.seed + self.checkpoint.timesteps)
             return model
         print(f"Continuing the training of {self.trained_agent}")
+        # The Zoo's `_load_pretrained_agent`, with the safe load: the policy is the file's, the other
+        # hyperparameters the run's.
+        hyperparams = {key: value for key, value in hyperparams.items() if key not in ("policy", "policy_kwargs")}
         with model_file_errors(self.trained_agent, algorithm_class.__name__), loading_model():
-            model = super()._load_pretrained_agent(hyperparams, env)
+            model = algorithm_class.load(
+                self.trained_agent,
+                env=env,
+                seed=self.seed,
+                tensorboard_log=self.tensorboard_log,
+                verbose=self.verbose,
+                device=self.device,
+                custom_objects=load_objects(self.trained_agent, self.trust_model_file),
+                **hyperparams,
+            )
         replay_buffer, _ = self._saved_with_agent()
-        if replay_buffer is not None and os.path.basename(replay_buffer) != "replay_buffer.pkl":  # the Zoo loaded that one
-            print(f"Loading the replay buffer {replay_buffer}")
-            model.load_replay_buffer(replay_buffer)  # type: ignore[attr-defined]
+        if replay_buffer is not None:
+            if not hasattr(model, "load_replay_buffer"):
+                raise ValueError(f"{type(model).__name__} has no replay buffer to load {replay_buffer} into")
+            zoo = os.path.basename(replay_buffer) == "replay_buffer.pkl"
+            print(f"{'Loading replay buffer' if zoo else 'Loading the replay buffer'} {replay_buffer}")
+            if self.trust_model_file:
+                model.load_replay_buffer(replay_buffer)
+            else:
+                _use_replay_buffer(model, _read_replay_buffer(replay_buffer))
         model.num_timesteps = 0
         return model
+
+    def _checkpoint_contents(self) -> CheckpointContents:
+        """The checkpoint's files, read once (by the check that chose the checkpoint, or here)."""
+        assert self.checkpoint is not None
+        if self._contents is None:
+            self._contents = read_checkpoint(self.checkpoint, self.trust_model_file)
+        return self._contents
 
     def _save_config(self, saved_hyperparams: dict[str, Any]) -> None:
         """Nothing more to write: ``create_log_folder`` wrote the configuration before anything could fail."""
@@ -453,13 +506,61 @@ class RunManager(ExperimentManager):
         """
         return saved_with(self.trained_agent, self.settings.env_id)
 
-    def _statistics_to_load(self) -> str | None:
-        """The ``VecNormalize`` statistics the run starts from: the checkpoint's, or those of the trained agent."""
+    def _statistics_to_load(self) -> str | VecNormalize | None:
+        """
+        The ``VecNormalize`` statistics the run starts from: the checkpoint's (read with it), or those of the trained
+        agent (a file read with the restricted unpickler; unpickled, when trusted).
+        """
         if self.checkpoint is not None:
-            return self.checkpoint.vecnormalize if os.path.isfile(self.checkpoint.vecnormalize) else None
-        if self.trained_agent:
-            return self._saved_with_agent()[1]
-        return None
+            return self._checkpoint_contents().vecnormalize
+        statistics = self._saved_with_agent()[1] if self.trained_agent else None
+        if statistics is not None and self.trust_model_file:
+            loaded = load_from_pkl(statistics)
+            if not isinstance(loaded, VecNormalize):
+                raise UnsafeModelFileError(f"{statistics} holds a {type(loaded).__name__}, not VecNormalize statistics")
+            return loaded
+        return statistics
+
+
+def _use_replay_buffer(model: OffPolicyAlgorithm, replay_buffer: object) -> None:
+    """
+    What SB3's ``load_replay_buffer`` (``truncate_last_traj=True``) does with the buffer it unpickled, for one read
+    already (by a restricted unpickler, or by a checkpoint's check): the model takes it, on the model's device.
+
+    :param model: The model
+    :param replay_buffer: The unpickled buffer
+    :raises ValueError: if it is not a replay buffer
+    """
+    if not isinstance(replay_buffer, ReplayBuffer):
+        raise ValueError(f"not a replay buffer: a {type(replay_buffer).__name__}")
+    model.replay_buffer = replay_buffer
+    if not hasattr(replay_buffer, "handle_timeout_termination"):  # SB3 < 2.1's buffers, as SB3 reads them
+        replay_buffer.handle_timeout_termination = False
+        replay_buffer.timeouts = np.zeros_like(replay_buffer.dones)
+    if isinstance(replay_buffer, HerReplayBuffer):  # only from a trusted file: not in the restricted allow-list
+        assert model.env is not None, "the model is loaded with its environments"
+        replay_buffer.set_env(model.env)
+        replay_buffer.truncate_last_trajectory()
+    replay_buffer.device = model.device
+
+
+def _read_replay_buffer(path: str) -> ReplayBuffer:
+    """
+    A replay buffer saved with a model to continue, read with the restricted unpickler.
+
+    :param path: The pickle
+    :raises UnsafeModelFileError: for a file that needs more than a replay buffer holds
+    :raises ModelFileError: for a damaged file, naming it
+    """
+    try:
+        replay_buffer = restricted_load(path, REPLAY_BUFFER_GLOBALS, "a replay buffer")
+    except UnsafeModelFileError:
+        raise
+    except Exception as error:  # unpickling a damaged file can raise almost anything
+        raise model_file_error(f"{path} is not a readable replay buffer: {type(error).__name__}: {error}") from error
+    if not isinstance(replay_buffer, ReplayBuffer):
+        raise model_file_error(f"{path} holds a {type(replay_buffer).__name__}, not a replay buffer")
+    return replay_buffer
 
 
 def saved_with(model_path: str, env_id: str) -> tuple[str | None, str | None]:

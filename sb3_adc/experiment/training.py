@@ -32,14 +32,15 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_adc.common.atomic import write_atomically
 from sb3_adc.common.model_files import model_file_error, model_file_errors
+from sb3_adc.common.safe_load import load_objects
 from sb3_adc.common.spaces import ActionSpaceError
 from sb3_adc.config import ExperimentConfig, HyperparamsError, load_hyperparams, resolve_entry
 from sb3_adc.config.loader import read_yaml_file
 from sb3_adc.config.schema import check_replay_buffer
-from sb3_adc.experiment.callbacks import checkpoint_damage
+from sb3_adc.experiment.callbacks import CheckpointContents, DamagedCheckpoint, read_checkpoint
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
 from sb3_adc.experiment.evaluation import FinalEvaluation, success_unreported
-from sb3_adc.experiment.layout import Checkpoint, RunLayout, latest_run_dir, new_run_dir
+from sb3_adc.experiment.layout import RunLayout, latest_run_dir, new_run_dir
 from sb3_adc.experiment.manager import RunManager
 from sb3_adc.experiment.settings import BEST_MODEL_METRICS, SettingsError, TrainSettings
 
@@ -105,18 +106,22 @@ class TrainResult:
     resumed_from: int | None = None
 
 
-def train(settings: TrainSettings, callbacks: Sequence[BaseCallback] = ()) -> TrainResult:
+def train(settings: TrainSettings, callbacks: Sequence[BaseCallback] = (), trust_model_file: bool = False) -> TrainResult:
     """
     Train ``settings.algo`` on ``settings.env_id`` in a new run folder.
 
     :param settings: What to train and how to log it
     :param callbacks: Callbacks called after the run's own (evaluation, checkpoints), e.g. the pruning callback
         of a tuning trial; not saved with the run
+    :param trust_model_file: Unpickle the model to continue (``settings.trained_agent``) and the files saved with it
+        as SB3 does, which runs any code they hold (default: a safe load, which refuses a file that needs more than
+        the classes it knows with :class:`~sb3_adc.common.safe_load.UnsafeModelFileError`)
     :raises HyperparamsError: for invalid hyperparameters (before anything is written)
     :raises SettingsError: for environment keyword arguments the environment rejects, an environment whose
         action space the algorithm cannot act in, or a ``trained_agent`` of another algorithm or for other spaces
         (before anything is written)
     :raises ModelFileError: for a ``trained_agent`` that is not a readable model file (before anything is written)
+    :raises UnsafeModelFileError: for a ``trained_agent`` a safe load refuses (before anything is written)
     :raises RunLocked: if another process is training in ``settings.run_dir`` (before anything is written)
     :raises RunInterrupted: on Ctrl-C, after saving a checkpoint
     """
@@ -124,7 +129,7 @@ def train(settings: TrainSettings, callbacks: Sequence[BaseCallback] = ()) -> Tr
     if settings.env_kwargs:
         config.env_kwargs.update(settings.env_kwargs)
         config.saved["env_kwargs"] = dict(config.env_kwargs)
-    _check_before_run(settings, config)
+    _check_before_run(settings, config, trust_model_file)
     run_dir = settings.run_dir or new_run_dir(settings.log_folder, settings.algo, settings.env_id)
     layout = RunLayout(run_dir, settings.env_id)
     with layout.lock():  # held for the run's whole life: one writer per run folder
@@ -136,7 +141,9 @@ def train(settings: TrainSettings, callbacks: Sequence[BaseCallback] = ()) -> Tr
             f"Training {settings.algo} on {settings.env_id} (seed {settings.seed}, {config.n_timesteps} timesteps, "
             f"hyperparameters from {config.source}) in {run_dir}"
         )
-        evaluation = RunManager(replace(settings, run_dir=run_dir), config, callbacks=callbacks).run()
+        run_settings = replace(settings, run_dir=run_dir)
+        manager = RunManager(run_settings, config, callbacks=callbacks, trust_model_file=trust_model_file)
+        evaluation = manager.run()
     return TrainResult(run_dir, layout.final_model, evaluation)
 
 
@@ -146,6 +153,7 @@ def resume(
     progress_bar: bool | None = None,
     verbose: int | None = None,
     callbacks: Sequence[BaseCallback] = (),
+    trust_model_file: bool = False,
 ) -> TrainResult:
     """
     Continue a run from its latest checkpoint (or return its result if it has finished).
@@ -159,7 +167,12 @@ def resume(
     :param progress_bar: Show a progress bar (``None``: as saved)
     :param verbose: SB3 verbosity (``None``: as saved)
     :param callbacks: Callbacks called after the run's own, as in :func:`train` (not saved with the run)
+    :param trust_model_file: Unpickle the checkpoint's files (and a model to continue, for a run without checkpoint)
+        as SB3 does, which runs any code they hold (default: restricted unpicklers, which build only what sb3-adc
+        writes in such files)
     :raises FileNotFoundError: if ``run_dir`` holds no run
+    :raises UnsafeModelFileError: for a file of the checkpoint that needs more than such a file holds (a file
+        planted in the run folder): refused, not run, before the run is changed
     :raises RunLocked: if another process is training the run (before anything is written)
     :raises RunInterrupted: on Ctrl-C, after saving a checkpoint
     """
@@ -172,16 +185,21 @@ def resume(
     )
     layout = RunLayout(run_dir, settings.env_id)
     with layout.lock():  # held for the run's whole life, taken before anything of the run is read or changed
-        return _resume_locked(layout, settings, n_timesteps, callbacks)
+        return _resume_locked(layout, settings, n_timesteps, callbacks, trust_model_file)
 
 
 def _resume_locked(
-    layout: RunLayout, settings: TrainSettings, n_timesteps: int | None, callbacks: Sequence[BaseCallback]
+    layout: RunLayout,
+    settings: TrainSettings,
+    n_timesteps: int | None,
+    callbacks: Sequence[BaseCallback],
+    trust_model_file: bool,
 ) -> TrainResult:
     """:func:`resume`, under the run's lock."""
     run_dir = layout.run_dir
     config = resolve_entry(settings.algo, settings.env_id, read_yaml_file(layout.config), layout.config)
-    checkpoint = _latest_checkpoint(layout)
+    contents = _latest_checkpoint(layout, trust_model_file)
+    checkpoint = contents.checkpoint if contents is not None else None
     if n_timesteps is not None and n_timesteps != config.n_timesteps:
         reached = checkpoint.timesteps if checkpoint is not None else 0
         if n_timesteps < reached:
@@ -199,7 +217,8 @@ def _resume_locked(
             print(f"{run_dir} has finished: {finished.summary()}")
             return TrainResult(run_dir, layout.final_model, finished, resumed_from=finished.timesteps)
         os.remove(layout.final_evaluation)
-    evaluation = RunManager(settings, config, checkpoint, callbacks).run()
+    manager = RunManager(settings, config, checkpoint, callbacks, contents=contents, trust_model_file=trust_model_file)
+    evaluation = manager.run()
     return TrainResult(run_dir, layout.final_model, evaluation, resumed_from=checkpoint.timesteps if checkpoint else None)
 
 
@@ -218,16 +237,19 @@ def find_run(log_folder: str, algo: str, env_id: str) -> str:
     return run_dir
 
 
-def _latest_checkpoint(layout: RunLayout) -> Checkpoint | None:
+def _latest_checkpoint(layout: RunLayout, trust: bool = False) -> CheckpointContents | None:
     """
-    The newest checkpoint that can be resumed from. A newer damaged one is reported and its files are renamed
-    ``*.damaged`` (kept for inspection, no longer a checkpoint: pruning and later resumes pass over it).
+    The newest checkpoint that can be resumed from, read (:func:`~sb3_adc.experiment.callbacks.read_checkpoint`:
+    each file once, none running code unless ``trust``). A newer damaged one is reported and its files are renamed
+    ``*.damaged`` (kept for inspection, no longer a checkpoint: pruning and later resumes pass over it); one with a
+    file that would run code raises :class:`~sb3_adc.common.safe_load.UnsafeModelFileError`, the folder unchanged.
     """
     damaged = False
     for checkpoint in reversed(layout.checkpoints()):
-        damage = checkpoint_damage(checkpoint)
-        if damage is None:
-            return checkpoint
+        try:
+            return read_checkpoint(checkpoint, trust)
+        except DamagedCheckpoint as error:
+            damage = str(error)
         damaged = True
         for path in checkpoint.files:
             if os.path.exists(path):
@@ -247,7 +269,7 @@ def _expected_policy_class(config: ExperimentConfig) -> type | None:
     return aliases.get(str(policy))
 
 
-def _check_before_run(settings: TrainSettings, config: ExperimentConfig) -> None:
+def _check_before_run(settings: TrainSettings, config: ExperimentConfig, trust_model_file: bool = False) -> None:
     """
     What only the environments tell, checked before the run folder is created: keyword arguments they reject, an
     action space the algorithm (or its exploration noise) cannot act in, a model to continue (``-i``) of another
@@ -279,23 +301,24 @@ def _check_before_run(settings: TrainSettings, config: ExperimentConfig) -> None
         except ValueError as error:
             raise HyperparamsError(config.source, "noise_type", str(error)) from None
         if settings.trained_agent is not None:
-            _check_trained_agent(settings, config, env)
+            _check_trained_agent(settings, config, env, trust_model_file)
     finally:
         env.close()
 
 
-def _check_trained_agent(settings: TrainSettings, config: ExperimentConfig, env: VecEnv) -> None:
+def _check_trained_agent(settings: TrainSettings, config: ExperimentConfig, env: VecEnv, trust: bool = False) -> None:
     """
     Read the model to continue (``-i``) before the run folder is created: a missing or damaged file, a model of
     another algorithm (another policy class), or one saved for other observation or action spaces than ``env``'s
-    is an error.
+    is an error, and so is (unless ``trust``) a file whose pickled entries a safe load refuses.
     """
     path = str(settings.trained_agent)
     name = config.algorithm_class.__name__
     if not os.path.isfile(path):
         raise SettingsError("trained_agent", f"must be a model file saved by {settings.algo}: {path} does not exist")
     with model_file_errors(path, name):
-        data, _, _ = load_from_zip_file(path, device="cpu", load_data=True)
+        custom_objects = load_objects(path, trust)
+        data, _, _ = load_from_zip_file(path, device="cpu", load_data=True, custom_objects=custom_objects)
     if data is None:
         raise model_file_error(f"{path} is not a readable {name} model file: it holds no model data")
     saved, expected = data.get("policy_class"), _expected_policy_class(config)

@@ -18,11 +18,17 @@ rate (``"success"``: the share of episodes ending with ``info["is_success"]``). 
 
 Files, under ``{log_folder}/tuning/{study_name}/``: ``study.log`` (the Optuna journal), ``trial_N/hyperparams.yml``
 and ``trial_N/seed_S/`` (run folders; a continuation uses its trial's folder), ``trials.csv`` and
-``best_hyperparams.yml`` (usable with ``-conf``).
+``best_hyperparams.yml`` (usable with ``-conf``), and ``.lock``: a study kept in a journal file is tuned by one
+command at a time, which holds the study folder's lock (:class:`~sb3_adc.experiment.layout.FolderLock`) for its life
+(its ``--n-jobs`` workers work under it), and a second command on the same folder fails at once with
+:class:`~sb3_adc.experiment.layout.RunLocked`. A study in a database (``--storage`` URL) is shared on purpose by
+commands on several machines or in one folder: no lock then. Two log folders can share one journal file too (each its
+own study folder).
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import functools
 import itertools
@@ -68,7 +74,7 @@ from sb3_adc.experiment.callbacks import TimestepSchedule
 from sb3_adc.experiment.divergence import TrainingDiverged
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
 from sb3_adc.experiment.evaluation import FinalEvaluation, success_rate, success_unreported
-from sb3_adc.experiment.layout import RunLayout, env_name
+from sb3_adc.experiment.layout import FolderLock, RunLayout, env_name
 from sb3_adc.experiment.manager import RunInterrupted
 from sb3_adc.experiment.samplers import SAMPLERS, Space, sample
 from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings, check_env_kwargs
@@ -249,6 +255,8 @@ def tune(settings: TuneSettings) -> TuneResult:
 
     :param settings: What to tune
     :raises HyperparamsError: for invalid settings or hyperparameters, before any trial runs
+    :raises RunLocked: if another command is tuning the study in its folder (a journal storage), before anything is
+        written
     """
     base = _base_entry(settings)
     # Resolve the starting entry once: invalid hyperparameters stop here, before a folder is made.
@@ -260,6 +268,28 @@ def tune(settings: TuneSettings) -> TuneResult:
     if settings.objective == "success":
         check_success_reported(settings, config.wrap_env(gym.make(settings.env_id, **evaluation_kwargs)))
     check_storage(settings.storage_url())
+    with study_lock(settings):
+        return _tune_locked(settings, base)
+
+
+#: What the holder of a study folder's lock is doing, for the error of a second command.
+TUNING_ACTIVITY = "tuning its study (one command per study kept in a journal file: use --n-jobs for more workers)"
+
+
+def study_lock(settings: TuneSettings) -> contextlib.AbstractContextManager[Any]:
+    """
+    The lock :func:`tune` holds for its life: the study folder's :class:`~sb3_adc.experiment.layout.FolderLock`,
+    unless the study is kept in a database (``--storage`` URL), which several commands share on purpose.
+
+    :param settings: The study's settings
+    """
+    if "://" in settings.storage_url():
+        return contextlib.nullcontext()
+    return FolderLock(settings.study_dir, TUNING_ACTIVITY)
+
+
+def _tune_locked(settings: TuneSettings, base: dict[str, Any]) -> TuneResult:
+    """:func:`tune` from the journal's repair on, under :func:`study_lock`."""
     if "://" not in settings.storage_url():
         repair_journal(settings.storage_url())
     study = _open_study(settings, worker=0)  # a database it cannot open stops here, before the study's folder is made

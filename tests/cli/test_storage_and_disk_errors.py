@@ -120,7 +120,7 @@ def test_other_os_errors_still_raise(cli, train_args, tmp_path, monkeypatch):
 def test_memory_exhausted_exits_2_saying_what_sizes_it(cli, train_args, tmp_path, monkeypatch):
     from sb3_adc.cli import train_command
 
-    def allocate(settings):
+    def allocate(settings, **_):
         raise MemoryError("Unable to allocate 186. GiB for an array with shape (50000, 1, 1000000) and data type float32")
 
     monkeypatch.setattr(train_command, "train", allocate)
