@@ -35,7 +35,7 @@ import os
 import platform
 import statistics
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, replace
 from functools import partial
 from pathlib import Path
@@ -186,49 +186,36 @@ def time_training(make: Callable[[], BaseAlgorithm], steps: int, warmup: int, cl
 
 
 def run(
-    env_id: str, steps: int, warmup: int, repeats: int, clock: Callable[[], float], models: list[str], settings: list[Setting]
+    env_id: str,
+    steps: int,
+    warmup: int,
+    repeats: int,
+    clock: Callable[[], float],
+    models: list[str],
+    settings: Sequence[Any],
+    make: Callable[[str, Any, str, int], BaseAlgorithm] = make_model,
+    baseline: str = "DDPG",
 ) -> list[dict[str, Any]]:
+    """
+    Time ``models`` at each setting, in a rotating order: per model the median steps/s, the repeats, and the ratio
+    of medians to ``baseline`` (``{model}_over_{baseline}``, spaces in names as ``_``).
+    """
     rows = []
     for setting in settings:
         timings: dict[str, list[float]] = {model: [] for model in models}
         for repeat in range(repeats):
             shift = repeat % len(models)
             for model in models[shift:] + models[:shift]:
-                speed = time_training(partial(make_model, model, setting, env_id, repeat), steps, warmup, clock)
+                speed = time_training(partial(make, model, setting, env_id, repeat), steps, warmup, clock)
                 timings[model].append(speed)
-                print(f"  {setting.name:<42} {model:<15} repeat {repeat}: {speed:8.1f} steps/s", flush=True)
-        ddpg = statistics.median(timings["DDPG"])
+                print(f"  {setting.name:<58} {model:<15} repeat {repeat}: {speed:8.1f} steps/s", flush=True)
+        reference = statistics.median(timings[baseline])
         row: dict[str, Any] = dict(setting=setting.name, **asdict(setting))
         for model in models:
-            median = statistics.median(timings[model])
-            row[f"{model}_steps_per_s"] = round(median, 1)
-            row[f"{model}_runs"] = [round(x, 1) for x in timings[model]]
-            if model != "DDPG":
-                row[f"{model}_over_ddpg"] = round(median / ddpg, 3)
-        rows.append(row)
-    return rows
-
-
-def run_fast(
-    env_id: str, steps: int, warmup: int, repeats: int, clock: Callable[[], float], settings: list[FastSetting]
-) -> list[dict[str, Any]]:
-    """Time :data:`FAST_MODELS` at each setting, in a rotating order; the median and the range over the repeats."""
-    rows = []
-    for setting in settings:
-        timings: dict[str, list[float]] = {model: [] for model in FAST_MODELS}
-        for repeat in range(repeats):
-            shift = repeat % len(FAST_MODELS)
-            for model in FAST_MODELS[shift:] + FAST_MODELS[:shift]:
-                speed = time_training(partial(make_fast_model, model, setting, env_id, repeat), steps, warmup, clock)
-                timings[model].append(speed)
-                print(f"  {setting.name:<58} {model:<10} repeat {repeat}: {speed:8.1f} steps/s", flush=True)
-        td3 = statistics.median(timings["TD3"])
-        row: dict[str, Any] = dict(setting=setting.name, **asdict(setting))
-        for model in FAST_MODELS:
-            key = model.replace(" ", "_")
-            row[f"{key}_steps_per_s"] = round(statistics.median(timings[model]), 1)
+            key, median = model.replace(" ", "_"), statistics.median(timings[model])
+            row[f"{key}_steps_per_s"] = round(median, 1)
             row[f"{key}_runs"] = [round(x, 1) for x in timings[model]]
-            row[f"{key}_over_td3"] = round(statistics.median(timings[model]) / td3, 3)
+            row[f"{key}_over_{baseline.lower()}"] = round(median / reference, 3)
         rows.append(row)
     return rows
 
@@ -458,7 +445,7 @@ def main_fast(args: argparse.Namespace) -> None:
     steps, warmup, repeats = (300, 300, 1) if args.quick else (args.steps, args.warmup, args.repeats)
     print(f"Fast update on {args.env}: {steps} timed steps after {warmup}, {repeats} repeats, {args.clock} clock")
     settings = FAST_SETTINGS[:1] if args.quick else FAST_SETTINGS
-    rows = run_fast(args.env, steps, warmup, repeats, CLOCKS[args.clock], settings)
+    rows = run(args.env, steps, warmup, repeats, CLOCKS[args.clock], FAST_MODELS, settings, make_fast_model, "TD3")
     if args.quick:
         fast_table(rows)
         return
