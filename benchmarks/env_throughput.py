@@ -19,6 +19,7 @@ Usage::
 
     python benchmarks/env_throughput.py              # full run, writes benchmarks/results/env_throughput*
     python benchmarks/env_throughput.py --quick      # a short smoke run (results not written)
+    python benchmarks/env_throughput.py --only sb3_adc/LidarObstacleCourse-v1 --suffix _before   # some, apart
 """
 
 from __future__ import annotations
@@ -125,14 +126,16 @@ def pin_to_one_core() -> str:
     return "not pinned (no sched_setaffinity on this OS)"
 
 
-def run(scale: float, repeats: int) -> list[dict[str, Any]]:
+def run(scale: float, repeats: int, names: list[str] | None = None) -> list[dict[str, Any]]:
     """
-    Measure every environment at every level; returns one row per (environment, level).
+    Measure every environment (or those of ``names``, with ``Pendulum-v1``) at every level; returns one row per
+    (environment, level).
 
     The repeats go round all the measurements in turn (rather than repeating one measurement back to back), so
     that a burst of load on a shared machine hits every environment alike; each keeps its best repeat.
     """
-    cases = [(name, level, max(100, int(steps * scale))) for name, (_, _, steps) in ENVIRONMENTS.items() for level in LEVELS]
+    chosen = [name for name in ENVIRONMENTS if names is None or name in names or name == "Pendulum-v1"]
+    cases = [(name, level, max(100, int(ENVIRONMENTS[name][2] * scale))) for name in chosen for level in LEVELS]
     envs = {}
     for name, level, n_steps in cases:
         env_id, kwargs, _ = ENVIRONMENTS[name]
@@ -182,6 +185,17 @@ def print_table(rows: list[dict[str, Any]]) -> None:
         )
 
 
+def write_table(rows: list[dict[str, Any]], path: Path) -> None:
+    """The rounded table the documentation shows."""
+    with path.open("w") as table:
+        table.write("environment,level,steps/s,us/step,x Pendulum-v1,reset ms (median)\n")
+        for row in rows:
+            table.write(
+                f"{row['environment']},{row['level']},{row['steps_per_s']:.0f},{row['us_per_step']:.1f},"
+                f"{row['ratio_to_pendulum']:.2f},{row['reset_ms']:.2f}\n"
+            )
+
+
 def plot(rows: list[dict[str, Any]], path: Path) -> None:
     """Bar chart of steps per second (log scale), core and gym.make side by side."""
     import matplotlib
@@ -220,18 +234,34 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="1%% of the steps and one repeat; writes no results")
     parser.add_argument("--repeats", type=int, default=3, help="repeats per measurement, the best is kept (default 3)")
+    parser.add_argument(
+        "--only",
+        nargs="+",
+        metavar="NAME",
+        choices=list(ENVIRONMENTS),
+        help="measure only these (and Pendulum-v1, the reference), into the files of --suffix",
+    )
+    parser.add_argument(
+        "--suffix",
+        default="",
+        help="with --only: write env_throughput<SUFFIX>.json and env_throughput_table<SUFFIX>.csv (say, of older code)",
+    )
     args = parser.parse_args(argv)
     if args.repeats < 1:
         parser.error(f"--repeats must be >= 1, got {args.repeats}")
 
     pinning = pin_to_one_core()
     print(f"sb3-adc {sb3_adc.__version__}, Python {platform.python_version()}, {cpu_model()}, {pinning}")
-    rows = run(scale=0.01 if args.quick else 1.0, repeats=1 if args.quick else args.repeats)
+    if args.only and not args.suffix and not args.quick:
+        parser.error("--only needs --suffix: a partial run does not replace the full results")
+    rows = run(scale=0.01 if args.quick else 1.0, repeats=1 if args.quick else args.repeats, names=args.only)
     print()
     print_table(rows)
     met = {}
     for key, (name, column, target) in TARGETS.items():
-        value = next(r[column] for r in rows if r["environment"] == name and r["level"] == "gym.make")
+        value = next((r[column] for r in rows if r["environment"] == name and r["level"] == "gym.make"), None)
+        if value is None:
+            continue  # not measured (--only)
         met[key] = value <= target if column == "reset_ms" else value >= target
         print(f"{name}, gym.make: {value:,.2f} {column} (target {target:,}): {'met' if met[key] else 'NOT met'}")
     if args.quick:
@@ -257,20 +287,23 @@ def main(argv: list[str] | None = None) -> int:
         "targets": TARGETS,
         "targets_met": met,
         "make_kwargs": {name: kwargs for name, (_, kwargs, _) in ENVIRONMENTS.items() if kwargs},
+        "only": args.only,
     }
+    if args.only:
+        # A partial run (say, of the code before a change): its own files, beside the full results.
+        (RESULTS_DIR / f"env_throughput{args.suffix}.json").write_text(
+            json.dumps({"metadata": metadata, "results": rows}, indent=2) + "\n"
+        )
+        write_table(rows, RESULTS_DIR / f"env_throughput_table{args.suffix}.csv")
+        print(f"Wrote env_throughput{args.suffix}.json and env_throughput_table{args.suffix}.csv in {RESULTS_DIR}")
+        return 0
     (RESULTS_DIR / "env_throughput.json").write_text(json.dumps({"metadata": metadata, "results": rows}, indent=2) + "\n")
     with (RESULTS_DIR / "env_throughput.csv").open("w") as csv:
         columns = list(rows[0])
         csv.write(",".join(columns) + "\n")
         for row in rows:
             csv.write(",".join(f"{row[c]:.6g}" if isinstance(row[c], float) else str(row[c]) for c in columns) + "\n")
-    with (RESULTS_DIR / "env_throughput_table.csv").open("w") as table:  # rounded, for the docs
-        table.write("environment,level,steps/s,us/step,x Pendulum-v1,reset ms (median)\n")
-        for row in rows:
-            table.write(
-                f"{row['environment']},{row['level']},{row['steps_per_s']:.0f},{row['us_per_step']:.1f},"
-                f"{row['ratio_to_pendulum']:.2f},{row['reset_ms']:.2f}\n"
-            )
+    write_table(rows, RESULTS_DIR / "env_throughput_table.csv")
     plot(rows, FIGURE_PATH)
     print(f"Wrote env_throughput.json, env_throughput.csv and env_throughput_table.csv in {RESULTS_DIR}, and {FIGURE_PATH}")
     return 0

@@ -13,7 +13,7 @@ from sb3_adc.extras import requires_extra
 with requires_extra("envs", "the lidar obstacle course"):
     import pybullet
 
-from sb3_adc_envs.lidar_course.course import Course, Obstacle
+from sb3_adc_envs.lidar_course.course import Course
 from sb3_adc_envs.lidar_course.wheeled import WheeledRobot
 
 #: Height of the walls [m].
@@ -31,8 +31,8 @@ ROBOTS = ("kinematic", "wheeled")
 # Collision filter groups. pybullet lets a pair collide when either one's group is in the other's mask; a ray
 # hits a body when the body's group is in the ray's mask and the ray's group, Bullet's default (1), is in the
 # body's mask. Rays see walls and obstacles only, never the robot.
-# - The course's world is never stepped: walls (and obstacles) are in group 1 with all groups in their mask, and
-#   the robot's mask is the walls' group.
+# - The course's world is never stepped: walls (and obstacles) are in group 1, the group pybullet gives the links of
+#   a multibody (which spares a call per link at every reset), and the robot's mask is the walls' group.
 # - The wheeled robot's world (ground and robot, no walls) is stepped: the ground and the robot's wheels and
 #   casters collide with each other only, and the robot's body with nothing: its contact with a wall is the
 #   geometric test of `_touches_wall` in the course's world, as for the kinematic robot (the episode ends
@@ -41,10 +41,15 @@ _WALL_GROUP = 1
 _ROBOT_GROUP = 2
 _GROUND_GROUP = 4
 _WHEEL_GROUP = 8
-_ALL_GROUPS = 0xFFFF
 #: Walls and obstacles per multibody: the most links a ``createMultiBody`` call takes (pybullet 3.2 drops those
 #: beyond 127: ``MAX_CREATE_MULTI_BODY_LINKS``, 128 with the base).
 LINKS_PER_BODY = 127
+#: Courses a client holds in turn before its world is emptied (``resetSimulation``), which frees the collision
+#: shapes of the courses before: pybullet frees a shape no other way once a body has used it.
+RESET_WORLD_EVERY = 16
+_FAR = (1.0e4, 1.0e4, 0.0)
+_ORIGIN = (0.0, 0.0, 0.0)
+_IDENTITY = (0.0, 0.0, 0.0, 1.0)
 
 
 class CourseSimulation:
@@ -119,18 +124,25 @@ class CourseSimulation:
         self._aabb_max = [0.0, 0.0, ROBOT_GROUND_CLEARANCE + ROBOT_HEIGHT]
         self._hits: tuple[tuple[int, ...], ...] = ()
         self._part_offsets: dict[int, int] = {}
+        self.robot_id = -1
+        self._courses_since_reset = 0
         self.load(course)
 
     def load(self, course: Course) -> None:
         """
         Build a course in this client, replacing the one there, and put the robot at rest at its start.
 
-        The world is emptied (``resetSimulation``: pybullet frees collision shapes no other way, and the walls of
-        every layout have sizes of their own) and rebuilt: the robot's cylinder, then the walls and obstacles as
-        the links of a few fixed multibodies, :data:`LINKS_PER_BODY` each, one ``createMultiBody`` call per
-        multibody (a call costs about 90 microseconds: a body per wall made a procedural reset take 20 ms). The
-        wheeled robot's world (ground and robot) is emptied and rebuilt too: each course starts from the same
-        physics state.
+        The walls and obstacles are the links of a few fixed multibodies, :data:`LINKS_PER_BODY` each, one
+        ``createMultiBody`` call per multibody (a call costs about 90 microseconds: a body per wall made a
+        procedural reset take 20 ms). The robot's cylinder stays; the multibodies of the course before are removed
+        (``removeBody``, a few microseconds a link) rather than the world emptied with ``resetSimulation`` (about
+        0.7 ms, even for an empty world). pybullet frees a collision shape that a body used only on
+        ``resetSimulation``, and the walls of every layout have sizes of their own, so every
+        :data:`RESET_WORLD_EVERY` courses the world is emptied and the robot built again, which bounds the memory
+        the shapes of past courses hold. A course's bodies are built the same way whatever came before (ids of
+        bodies and shapes aside, which :attr:`wall_ids` and :attr:`obstacle_ids` hide): the same course gives the
+        same readings, contacts and ids. The wheeled robot's world (ground and robot) is emptied and rebuilt at
+        every course: each course starts from the same physics state.
 
         :param course: The course
         """
@@ -138,22 +150,19 @@ class CourseSimulation:
         if client is None:
             raise RuntimeError("the simulation is closed")
         self.course = course
-        pybullet.resetSimulation(physicsClientId=client)
-        self.robot_id = pybullet.createMultiBody(
-            baseMass=0.0,
-            baseCollisionShapeIndex=pybullet.createCollisionShape(
-                pybullet.GEOM_CYLINDER, radius=self.robot_radius, height=ROBOT_HEIGHT, physicsClientId=client
-            ),
-            physicsClientId=client,
-        )
-        pybullet.setCollisionFilterGroupMask(self.robot_id, -1, _ROBOT_GROUP, _WALL_GROUP, physicsClientId=client)
-        shapes: list[int] = []
-        positions: list[list[float]] = []
-        orientations: list[list[float]] = []
-        for segment in course.walls:
-            self._add_wall(segment, course.wall_thickness, shapes, positions, orientations)
-        for obstacle in course.obstacles:
-            self._add_obstacle(obstacle, shapes, positions, orientations)
+        if self._courses_since_reset >= RESET_WORLD_EVERY or self.robot_id < 0:
+            self._reset_world()
+        else:
+            for body in self._part_offsets:
+                pybullet.removeBody(body, physicsClientId=client)
+            # The robot back where _reset_world built it, by way of a far point (a jump, not a move: pybullet
+            # widens the box of a body it moves by less than the body's size), so that the broadphase's tree of
+            # the new course grows as in a new world: rays whose nearest hits tie (two walls sharing a face)
+            # report the same one.
+            for far in (_FAR, _ORIGIN):
+                pybullet.resetBasePositionAndOrientation(self.robot_id, far, _IDENTITY, physicsClientId=client)
+        self._courses_since_reset += 1
+        shapes, positions, orientations = self._parts(course)
         self._part_offsets = {}
         for first in range(0, len(shapes), LINKS_PER_BODY):
             parts = slice(first, first + LINKS_PER_BODY)
@@ -174,9 +183,8 @@ class CourseSimulation:
             )
             if pybullet.getNumJoints(body, physicsClientId=client) != n_links:
                 raise RuntimeError(f"pybullet built {n_links} links short; lower LINKS_PER_BODY ({LINKS_PER_BODY})")
+            # The links keep the collision group pybullet gives them, _WALL_GROUP: no call per link.
             self._part_offsets[body] = first
-            for link in range(n_links):
-                pybullet.setCollisionFilterGroupMask(body, link, _WALL_GROUP, _ALL_GROUPS, physicsClientId=client)
         #: Ids of the wall segments, then of the obstacles: their indices in the course's walls, then obstacles.
         self.wall_ids = list(range(len(course.walls)))
         self.obstacle_ids = list(range(len(course.walls), len(shapes)))
@@ -189,6 +197,54 @@ class CourseSimulation:
             pybullet.resetBasePositionAndOrientation(
                 self.robot_id, [start.x, start.y, SENSOR_HEIGHT], [0.0, 0.0, 0.0, 1.0], physicsClientId=client
             )
+
+    def _reset_world(self) -> None:
+        # An empty world (freeing every collision shape) with the robot's cylinder in it.
+        client = self._client
+        pybullet.resetSimulation(physicsClientId=client)
+        self.robot_id = pybullet.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=pybullet.createCollisionShape(
+                pybullet.GEOM_CYLINDER, radius=self.robot_radius, height=ROBOT_HEIGHT, physicsClientId=client
+            ),
+            physicsClientId=client,
+        )
+        pybullet.setCollisionFilterGroupMask(self.robot_id, -1, _ROBOT_GROUP, _WALL_GROUP, physicsClientId=client)
+        self._part_offsets = {}
+        self._courses_since_reset = 0
+
+    def _parts(self, course: Course) -> tuple[list[int], list[list[float]], list[list[float]]]:
+        # The collision shapes of the walls, then of the obstacles, and their positions and orientations.
+        client = self._client
+        thickness = course.wall_thickness
+        half_height = WALL_HEIGHT / 2.0
+        create = pybullet.createCollisionShape
+        box = pybullet.GEOM_BOX
+        shapes: list[int] = []
+        positions: list[list[float]] = []
+        orientations: list[list[float]] = []
+        for x0, y0, x1, y1 in course.walls.tolist():
+            length = math.hypot(x1 - x0, y1 - y0)
+            yaw = math.atan2(y1 - y0, x1 - x0)
+            # Half a thickness longer at both ends, so that the walls of a polyline overlap at their joints.
+            shapes.append(
+                create(box, halfExtents=[length / 2.0 + thickness / 2.0, thickness / 2.0, half_height], physicsClientId=client)
+            )
+            positions.append([(x0 + x1) / 2.0, (y0 + y1) / 2.0, half_height])
+            orientations.append([0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)])
+        for obstacle in course.obstacles:
+            if obstacle.shape == "cylinder":
+                shape = create(
+                    pybullet.GEOM_CYLINDER, radius=obstacle.length / 2.0, height=WALL_HEIGHT, physicsClientId=client
+                )
+            else:
+                shape = create(
+                    box, halfExtents=[obstacle.length / 2.0, obstacle.width / 2.0, half_height], physicsClientId=client
+                )
+            shapes.append(shape)
+            positions.append([obstacle.x, obstacle.y, half_height])
+            orientations.append([0.0, 0.0, math.sin(obstacle.yaw / 2.0), math.cos(obstacle.yaw / 2.0)])
+        return shapes, positions, orientations
 
     def _build_wheeled_world(self) -> None:
         # The stepped world of the wheeled robot: the ground and the robot, anew.
@@ -213,45 +269,6 @@ class CourseSimulation:
         assert self.wheeled is not None
         position, orientation = self.wheeled.base_pose
         pybullet.resetBasePositionAndOrientation(self.robot_id, position, orientation, physicsClientId=self._client)
-
-    def _add_obstacle(
-        self, obstacle: Obstacle, shapes: list[int], positions: list[list[float]], orientations: list[list[float]]
-    ) -> None:
-        if obstacle.shape == "cylinder":
-            shape = pybullet.createCollisionShape(
-                pybullet.GEOM_CYLINDER, radius=obstacle.length / 2.0, height=WALL_HEIGHT, physicsClientId=self._client
-            )
-        else:
-            shape = pybullet.createCollisionShape(
-                pybullet.GEOM_BOX,
-                halfExtents=[obstacle.length / 2.0, obstacle.width / 2.0, WALL_HEIGHT / 2.0],
-                physicsClientId=self._client,
-            )
-        shapes.append(shape)
-        positions.append([obstacle.x, obstacle.y, WALL_HEIGHT / 2.0])
-        orientations.append([0.0, 0.0, math.sin(obstacle.yaw / 2.0), math.cos(obstacle.yaw / 2.0)])
-
-    def _add_wall(
-        self,
-        segment: np.ndarray,
-        thickness: float,
-        shapes: list[int],
-        positions: list[list[float]],
-        orientations: list[list[float]],
-    ) -> None:
-        x0, y0, x1, y1 = (float(value) for value in segment)
-        length = math.hypot(x1 - x0, y1 - y0)
-        yaw = math.atan2(y1 - y0, x1 - x0)
-        # Half a thickness longer at both ends, so that the walls of a polyline overlap at its joints.
-        shapes.append(
-            pybullet.createCollisionShape(
-                pybullet.GEOM_BOX,
-                halfExtents=[length / 2.0 + thickness / 2.0, thickness / 2.0, WALL_HEIGHT / 2.0],
-                physicsClientId=self._client,
-            )
-        )
-        positions.append([(x0 + x1) / 2.0, (y0 + y1) / 2.0, WALL_HEIGHT / 2.0])
-        orientations.append([0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)])
 
     @property
     def client_id(self) -> int | None:
