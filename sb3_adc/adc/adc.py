@@ -2,6 +2,7 @@ from __future__ import annotations
 
 import io
 import pathlib
+from functools import partial
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
@@ -15,6 +16,7 @@ from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, PyTorch
 from stable_baselines3.common.utils import polyak_update
 from torch.nn import functional as F
 
+from sb3_adc.adc.exploration import check_interval_exploration, check_interval_temperature, explore_from_advantages
 from sb3_adc.adc.policies import (
     DEFAULT_CRITIC_DESIGN,
     GREEDY_CRITIC_DESIGNS,
@@ -92,9 +94,9 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
     Q-functionals), and the interval baseline it subtracts, the mean of each Legendre term over the interval
     centres, is below 1.7e-4 for 100 intervals and 4.2e-3 for 20 (at the default degree 4). So ``n_intervals``
     barely matters for it: it shifts ``Q(s, .)`` by a constant in the action and leaves ``dQ/da``, which the
-    actor follows, unchanged (see :mod:`sb3_adc.adc.designs`). It matters with ``target_greedy_mix`` or
-    ``actor_greedy_weight``: they search the grid of interval centres for the best action, ``n_intervals`` points
-    per action dimension.
+    actor follows, unchanged (see :mod:`sb3_adc.adc.designs`). It matters with ``target_greedy_mix``,
+    ``actor_greedy_weight`` (they search the grid of interval centres, ``n_intervals`` points per action dimension,
+    for the best action) and ``interval_exploration`` (it draws among those intervals).
 
     ADC is a special case of TD3, the way SB3's DDPG is, with a
     :class:`~sb3_adc.adc.policies.DuelingIntervalCritic` in place of the critic. Its defaults follow the
@@ -144,6 +146,12 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
         best interval centre, only on the states where it beats the actor's action, which can move the actor out
         of a local optimum of ``Q_1(s, .)`` that the gradient alone keeps it in. 0 (default): the paper's actor
         loss. Needs a critic design in ``GREEDY_CRITIC_DESIGNS``
+    :param interval_exploration: Not in the paper: exploration from the advantages, the probability ``p`` in ``[0, 1]``
+        that each action component, when collecting experience after ``learning_starts``, is drawn from
+        ``softmax_z(A_1(s, z) / T)`` over its intervals (uniformly within the drawn one) instead of the actor plus
+        ``action_noise`` (:mod:`sb3_adc.adc.exploration`). 0 (default): the paper's exploration. Needs a critic design
+        in ``GREEDY_CRITIC_DESIGNS``
+    :param interval_temperature: The temperature ``T > 0`` of that draw, in the units of the critic's Q-values
     :param fast_update: Not in the paper, and not a change to what is learned: ``True`` trains with the fast update
         path, which changes float rounding only (opt-in until a 10-seed comparison shows the same learning; the
         committed results used the plain path): fused Adam steps (unless ``optimizer_kwargs`` choose ``foreach`` or
@@ -197,6 +205,8 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
         target_noise_clip: float = 0.0,
         target_greedy_mix: float = 0.0,
         actor_greedy_weight: float = 0.0,
+        interval_exploration: float = 0.0,
+        interval_temperature: float = 1.0,
         fast_update: bool = False,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
@@ -208,6 +218,8 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
     ):
         check_target_greedy_mix(target_greedy_mix)
         check_actor_greedy_weight(actor_greedy_weight)
+        check_interval_exploration(interval_exploration)
+        check_interval_temperature(interval_temperature)
         check_fast_update(fast_update)
         if env is not None:
             # Check the action space before SB3 does, for an error that says what ADC accepts.
@@ -244,6 +256,8 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
         self.critic_learning_rate = critic_learning_rate
         self.target_greedy_mix = float(target_greedy_mix)
         self.actor_greedy_weight = float(actor_greedy_weight)
+        self.interval_exploration = float(interval_exploration)
+        self.interval_temperature = float(interval_temperature)
         self.fast_update = fast_update
         self._last_batch: tuple[PyTorchObs, th.Tensor] | None = None
         if _init_setup_model:
@@ -260,7 +274,7 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
         self.policy_kwargs = {"critic_design": DEFAULT_CRITIC_DESIGN, **self.policy_kwargs}
         super()._setup_model()
         if self.critic.critic_design not in GREEDY_CRITIC_DESIGNS:
-            for name in ("target_greedy_mix", "actor_greedy_weight"):
+            for name in ("target_greedy_mix", "actor_greedy_weight", "interval_exploration"):
                 if getattr(self, name) > 0:
                     raise ValueError(
                         f"`{name}` needs the Q-value of every interval centre, which critic_design="
@@ -466,6 +480,21 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
             pull = (actions - greedy_actions).square().sum(dim=1, keepdim=True)
             loss = loss + self.actor_greedy_weight * th.where(improves, pull, 0.0).mean()
         return loss
+
+    def _sample_action(
+        self, learning_starts: int, action_noise: ActionNoise | None = None, n_envs: int = 1
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """SB3's exploration (uniform warm-up, then the actor plus ``action_noise``), then ``interval_exploration``'s
+        draws (:func:`~sb3_adc.adc.exploration.explore_from_advantages`). Parameters and return as SB3's."""
+        action, buffer_action = super()._sample_action(learning_starts, action_noise, n_envs)
+        if self.interval_exploration == 0 or self.num_timesteps < learning_starts or self._last_obs is None:
+            return action, buffer_action
+        actions = th.as_tensor(buffer_action, device=self.device)
+        # The critic's pass, only if a component is drawn.
+        advantages = partial(self.critic.interval_advantages, self.policy.obs_to_tensor(self._last_obs)[0])
+        p, temperature = self.interval_exploration, self.interval_temperature
+        buffer_action = explore_from_advantages(actions, advantages, self.critic.partition.edges, p, temperature).cpu().numpy()
+        return self.policy.unscale_action(buffer_action), buffer_action
 
     def dump_logs(self) -> None:
         """Write log data, with the critic's diagnostics on the last training batch: ``train/value_mean`` (mean of

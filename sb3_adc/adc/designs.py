@@ -29,9 +29,10 @@ advantages of the interval centres ``(batch, action_dim, n_intervals)``, and ``q
 interval centres (:class:`ActionAdvantageNetwork`).
 
 Only ``"legendre"`` reads every interval centre's ``Q`` off one pass (``greedy_intervals``, used by ADC's greedy
-targets and greedy policy improvement): its streams read the state only and its ``Q`` is additive across action
-dimensions. The other designs' advantage networks read the action, so ``Q(s, z)`` at a centre needs a pass with the
-action set to that centre, ``n_intervals ** action_dim`` passes per state for the whole grid.
+targets and greedy policy improvement, and ``advantages_at_centres``, used by its exploration from the advantages):
+its streams read the state only and its ``Q`` is additive across action dimensions. The other designs' advantage
+networks read the action, so ``Q(s, z)`` at a centre needs a pass with the action set to that centre,
+``n_intervals ** action_dim`` passes per state for the whole grid.
 """
 
 from __future__ import annotations
@@ -262,6 +263,16 @@ class LegendreAdvantageNetwork(nn.Module):
         """
         value, coefficients = self._heads(features)
         return value, coefficients @ self.basis_at_centres
+
+    def advantages_at_centres(self, features: th.Tensor) -> th.Tensor:
+        """
+        ``A(s, z) = sum_k c_k(s) P_k(centre_z)`` at every interval centre (Eq. 13-14's interval advantages, raw), from
+        one pass of the state heads.
+
+        :param features: ``(batch, features_dim)``
+        :return: ``(batch, action_dim, n_intervals)``
+        """
+        return self._heads(features)[1] @ self.basis_at_centres
 
     def q_value(
         self,

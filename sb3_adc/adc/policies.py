@@ -395,15 +395,33 @@ class DuelingIntervalCritic(BaseModel):
         :return: ``z*`` ``(batch, action_dim)``, scaled actions in ``[-1, 1]``, and ``Q_1(s, z*)`` ``(batch, 1)``
         :raises ValueError: for a critic design not in :data:`GREEDY_CRITIC_DESIGNS`
         """
-        q_net = self.q_networks[0]
-        if not isinstance(q_net, LegendreAdvantageNetwork):
-            raise ValueError(
-                f"`greedy_action` needs critic_design in {GREEDY_CRITIC_DESIGNS}, got {self.critic_design!r}: its "
-                "advantage network reads the action, so one pass does not give the Q-value of every interval centre."
-            )
+        q_net = self._one_pass_network("greedy_action")
         features = self.extract_features(obs, self.features_extractor)
         index, value = q_net.greedy_intervals(features, self.aggregation)
         return self.partition.centres[index], value
+
+    @th.no_grad()
+    def interval_advantages(self, obs: PyTorchObs) -> th.Tensor:
+        """
+        The advantage stream of the first critic network at every interval centre, ``A_1(s, z)`` (Eq. 13-14 before
+        centring), from one pass; what ADC's ``interval_exploration`` draws from. Evaluated without gradient.
+
+        :param obs: Observations
+        :return: ``(batch, action_dim, n_intervals)``
+        :raises ValueError: for a critic design not in :data:`GREEDY_CRITIC_DESIGNS`
+        """
+        q_net = self._one_pass_network("interval_advantages")
+        return q_net.advantages_at_centres(self.extract_features(obs, self.features_extractor))
+
+    def _one_pass_network(self, caller: str) -> LegendreAdvantageNetwork:
+        """The first critic network, if its design gives every interval centre's advantage in one pass."""
+        q_net = self.q_networks[0]
+        if not isinstance(q_net, LegendreAdvantageNetwork):
+            raise ValueError(
+                f"`{caller}` needs critic_design in {GREEDY_CRITIC_DESIGNS}, got {self.critic_design!r}: its "
+                "advantage network reads the action, so one pass does not give the Q-value of every interval centre."
+            )
+        return q_net
 
 
 def _make_network(

@@ -17,6 +17,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
 from sb3_adc.adc.adc import check_actor_greedy_weight, check_fast_update, check_target_greedy_mix
+from sb3_adc.adc.exploration import check_interval_exploration, check_interval_temperature
 from sb3_adc.adc.intervals import AGGREGATIONS, INTERPOLATIONS, check_n_intervals
 from sb3_adc.adc.policies import CRITIC_DESIGNS
 from sb3_adc.common.actor_average import ActorAverageTD3Policy, check_actor_average_tau
@@ -91,6 +92,8 @@ MODEL_KEYS: dict[str, v.Validator] = {
     "target_noise_clip": v.real(0.0),
     "target_greedy_mix": v.checked_by(check_target_greedy_mix, v.real()),
     "actor_greedy_weight": v.checked_by(check_actor_greedy_weight, v.real()),
+    "interval_exploration": v.checked_by(check_interval_exploration, v.real()),
+    "interval_temperature": v.checked_by(check_interval_temperature, v.real()),
     "fast_update": v.checked_by(check_fast_update, v.boolean),
     "optimize_memory_usage": v.boolean,
     "replay_buffer_class": v.optional(v.string),
