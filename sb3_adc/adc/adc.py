@@ -153,8 +153,8 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
         in ``GREEDY_CRITIC_DESIGNS``
     :param interval_temperature: The temperature ``T > 0`` of that draw, in the units of the critic's Q-values
     :param fast_update: Not in the paper, and not a change to what is learned: ``True`` trains with the fast update
-        path, which changes float rounding only (opt-in until a 10-seed comparison shows the same learning; the
-        committed results used the plain path): fused Adam steps (unless ``optimizer_kwargs`` choose ``foreach`` or
+        path, which changes float rounding only (10 fresh seeds on the noisy Pendulum learn the same; opt-in, so
+        that the committed results, made with the plain path, re-run digit for digit): fused Adam steps (unless ``optimizer_kwargs`` choose ``foreach`` or
         ``fused``), the twin critics of the default ``"legendre"`` design evaluated as one batched module
         (:mod:`sb3_adc.adc.stacked`), one Polyak update over all target parameters, and the losses kept as tensors
         and logged once per :meth:`train` call. ``False`` (default): the plain path, one critic after the other,

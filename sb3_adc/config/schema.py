@@ -88,6 +88,7 @@ MODEL_KEYS: dict[str, v.Validator] = {
     "gradient_steps": v.integer(1, allowed=(-1,)),
     "n_steps": v.integer(1),
     "policy_delay": v.integer(1),
+    "top_quantiles_to_drop_per_net": v.integer(0),  # TQC's
     "target_policy_noise": v.real(0.0),
     "target_noise_clip": v.real(0.0),
     "target_greedy_mix": v.checked_by(check_target_greedy_mix, v.real()),

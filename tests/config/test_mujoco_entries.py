@@ -114,3 +114,8 @@ def test_each_entry_builds_and_learns_on_hopper(algo):
     model = config.algorithm_class(env=env, action_noise=noise, seed=0, **config.model_kwargs)
     model.learn(40)
     assert model.num_timesteps == 40
+
+
+def test_tqc_quantiles_to_drop_are_checked_when_read():
+    with pytest.raises(HyperparamsError, match="`top_quantiles_to_drop_per_net`: expected an integer >= 0"):
+        load_hyperparams("tqc", "Hopper-v5", overrides={"top_quantiles_to_drop_per_net": "five"})
