@@ -154,11 +154,11 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate):
     :param interval_temperature: The temperature ``T > 0`` of that draw, in the units of the critic's Q-values
     :param fast_update: Not in the paper, and not a change to what is learned: ``True`` trains with the fast update
         path, which changes float rounding only (10 fresh seeds on the noisy Pendulum learn the same; opt-in, so
-        that the committed results, made with the plain path, re-run digit for digit): fused Adam steps (unless ``optimizer_kwargs`` choose ``foreach`` or
-        ``fused``), the twin critics of the default ``"legendre"`` design evaluated as one batched module
-        (:mod:`sb3_adc.adc.stacked`), one Polyak update over all target parameters, and the losses kept as tensors
-        and logged once per :meth:`train` call. ``False`` (default): the plain path, one critic after the other,
-        per-parameter optimizer steps and Polyak updates (as SB3's TD3)
+        that the committed results, made with the plain path, re-run digit for digit): fused Adam steps (unless
+        ``optimizer_kwargs`` choose ``foreach`` or ``fused``), the twin critics of the default ``"legendre"`` design
+        evaluated as one batched module (:mod:`sb3_adc.adc.stacked`), one Polyak update over all target parameters,
+        and the losses kept as tensors and logged once per :meth:`train` call. ``False`` (default): the plain path,
+        one critic after the other, per-parameter optimizer steps and Polyak updates (as SB3's TD3)
     :param stats_window_size: Window size for the rollout logging, specifying the number of episodes to average
         the reported success rate, mean episode length, and mean reward over
     :param tensorboard_log: the log location for tensorboard (if None, no logging)
