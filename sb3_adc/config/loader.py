@@ -10,7 +10,7 @@ them (a key of the environment's entry replaces the default's value as a whole).
 allow-lists of :mod:`sb3_adc.config.allowlists`.
 
 Files are also bounded, so that a small hostile file cannot exhaust memory or time
-(:mod:`sb3_adc.config.yaml_files`, whose limits this module's name stands for in error messages).
+(:mod:`sb3_adc.config.yaml_files`, which names the limit a file is over).
 """
 
 from __future__ import annotations
@@ -30,22 +30,9 @@ from sb3_adc.config.allowlists import CALLBACKS, ENV_WRAPPERS, EXPRESSION_NAMES,
 from sb3_adc.config.errors import HyperparamsError, short_repr
 from sb3_adc.config.experiment_config import ExperimentConfig, NoiseSpec
 from sb3_adc.config.expressions import parse_expression
-from sb3_adc.config.schema import (
-    ADC_POLICY_KEYS,
-    EPSILON_NOISE_KEYS,
-    accepted_keys,
-    constructor_keys,
-    policy_kwargs_keys,
-)
+from sb3_adc.config.schema import ADC_POLICY_KEYS, EPSILON_NOISE_KEYS, accepted_keys, constructor_keys, policy_kwargs_keys
 from sb3_adc.config.validators import Validator
-from sb3_adc.config.yaml_files import (  # noqa: F401 (the limits are named after this module in error messages)
-    MAX_ALIASES,
-    MAX_DEPTH,
-    MAX_EXPANDED_VALUES,
-    MAX_FILE_BYTES,
-    load_yaml_bounded,
-    read_yaml_file,
-)
+from sb3_adc.config.yaml_files import MAX_FILE_BYTES, load_yaml_bounded, read_yaml_file
 
 #: The package holding the shipped hyperparameter files.
 HYPERPARAMS_PACKAGE = "sb3_adc.hyperparams"
@@ -101,9 +88,8 @@ def read_hyperparams_file(path: str) -> dict[str, Any]:
     Read a hyperparameter file: a YAML mapping of entry names (environment ids, ``default``) to mappings.
 
     :param path: The file
-    :raises HyperparamsError: if the file is missing, is not valid UTF-8 YAML, is over a limit of this module
-        (:data:`MAX_FILE_BYTES`, :data:`MAX_DEPTH`, :data:`MAX_ALIASES`, :data:`MAX_EXPANDED_VALUES`), or does not
-        have that structure
+    :raises HyperparamsError: if the file is missing, is not valid UTF-8 YAML, is over a limit of
+        :mod:`sb3_adc.config.yaml_files`, or does not have that structure
     """
     if not os.path.isfile(path):
         raise HyperparamsError(path, None, "hyperparameter file not found")
@@ -230,13 +216,7 @@ def apply_overrides(entry: Mapping[str, Any], overrides: Mapping[str, Any]) -> d
 
 
 def _did_you_mean(name: str, accepted: Iterable[str]) -> str:
-    """
-    A "did you mean" phrase (to end an error message) naming the accepted names closest to a misspelt ``name``;
-    empty where none is close.
-
-    :param name: The unknown name
-    :param accepted: The accepted names
-    """
+    """A "did you mean" phrase naming the ``accepted`` names closest to a misspelt ``name``; empty if none is close."""
     close = difflib.get_close_matches(name, sorted(accepted), n=3, cutoff=0.6)
     return f"; did you mean {' or '.join(f'`{match}`' for match in close)}?" if close else ""
 

@@ -4,8 +4,7 @@ Bounded YAML: the hyperparameter files, experiment files and a run's ``config.ym
 cannot exhaust memory or time: at most :data:`MAX_FILE_BYTES` bytes, :data:`MAX_DEPTH` levels of nested
 collections, :data:`MAX_ALIASES` aliases (``*name``) and :data:`MAX_EXPANDED_VALUES` values once the aliases are
 expanded (an "alias bomb" of a few hundred bytes expands to billions). A file over a limit is rejected before
-anything is built from it, with a :class:`~sb3_adc.config.errors.HyperparamsError` that names the file and the limit
-(as a limit of ``sb3_adc.config.loader``, which reads the hyperparameter files with them).
+anything is built from it, with a :class:`~sb3_adc.config.errors.HyperparamsError` that names the file and the limit.
 """
 
 from __future__ import annotations
@@ -120,7 +119,7 @@ def load_yaml_bounded(text: str, source: str, key: str | None = None, what: str 
     try:
         return loader.get_single_data()
     except _YamlLimitExceeded as error:
-        raise HyperparamsError(source, key, f"{what} is over a limit of sb3_adc.config.loader: {error}") from None
+        raise HyperparamsError(source, key, f"{what} is over a limit of sb3_adc.config.yaml_files: {error}") from None
     except yaml.YAMLError as error:
         raise HyperparamsError(source, key, f"{what} is not valid YAML (Python tags are not accepted): {error}") from None
     finally:
@@ -141,7 +140,7 @@ def read_yaml_file(path: str) -> Any:
         data = stream.read(MAX_FILE_BYTES + 1)
     if len(data) > MAX_FILE_BYTES:
         raise HyperparamsError(
-            path, None, f"file larger than {MAX_FILE_BYTES} bytes (MAX_FILE_BYTES of sb3_adc.config.loader)"
+            path, None, f"file larger than {MAX_FILE_BYTES} bytes (MAX_FILE_BYTES of sb3_adc.config.yaml_files)"
         )
     try:
         text = data.decode("utf-8")

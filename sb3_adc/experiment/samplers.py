@@ -4,9 +4,10 @@ Optuna search spaces of the algorithms that ``sb3-adc train -optimize`` tunes.
 Each sampler draws hyperparameters from an Optuna trial and returns them as overrides of the algorithm's entry
 (the same ``key: value`` pairs as ``-params``), so a trial runs through the same engine, validation and log
 layout as any other run. The spaces follow the RL Zoo's ``rl_zoo3/hyperparams_opt.py`` for the keys the
-algorithms share. They are not registered in the Zoo's ``HYPERPARAMS_SAMPLER``: a Zoo sampler returns constructor
-keywords with objects such as noise instances, which cannot go through our validated YAML entries, and its
-``objective`` trains one seed on the Zoo's environments; a trial here trains several seeds through our engine.
+algorithms share. :func:`register_zoo_samplers` also adds them to the Zoo's ``HYPERPARAMS_SAMPLER`` (for the names
+the Zoo lacks), so that the Zoo's own ``objective`` searches ADC's space: the values drawn are validated as an entry
+and returned as constructor keywords. ``sb3-adc train -optimize`` keeps its own objective, because a trial there
+trains several seeds through our engine where the Zoo's trains one.
 
 ADC and DDPG are searched over the same shared keys, including the critic-to-actor learning-rate ratio and the
 epsilon-gated exploration schedule; ADC also over its own knobs: the critic design, the number of intervals
@@ -225,4 +226,36 @@ def sample(algo: str, space: Space) -> dict[str, Any]:
     return {**SAMPLERS[algo](space), **space.drawn}
 
 
-__all__ = ["NET_ARCHS", "SAMPLERS", "Sampler", "Space", "sample"]
+def zoo_sampler(algo: str) -> Callable[[optuna.Trial, int, int, dict[str, Any]], dict[str, Any]]:
+    """
+    The space of ``algo`` with the signature of the Zoo's samplers (``trial, n_actions, n_envs, additional_args``):
+    the values drawn go through the same validation as a hyperparameter entry, and come back as the constructor
+    keywords the Zoo's ``objective`` passes to the algorithm (``action_noise`` built for ``n_actions``).
+
+    :param algo: The algorithm (a key of :data:`SAMPLERS`)
+    """
+    from gymnasium import spaces
+
+    from sb3_adc.config.loader import resolve_entry
+
+    def sampler(trial: optuna.Trial, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
+        values = sample(algo, Space(trial, {}))
+        config = resolve_entry(algo, "zoo", {"policy": "MlpPolicy", "n_timesteps": 1, **values}, f"{algo} sampler")
+        kwargs = {key: value for key, value in config.model_kwargs.items() if key != "policy"}
+        if config.noise is not None:
+            kwargs["action_noise"] = config.noise.build(spaces.Box(-1.0, 1.0, (n_actions,)))
+        return kwargs
+
+    return sampler
+
+
+def register_zoo_samplers() -> None:
+    """Add :func:`zoo_sampler` of each algorithm of :data:`SAMPLERS` that the Zoo's ``HYPERPARAMS_SAMPLER`` lacks
+    (``adc``, ``vanilla_ac``); the Zoo's own spaces stay for its algorithms."""
+    from rl_zoo3.hyperparams_opt import HYPERPARAMS_SAMPLER
+
+    for algo in SAMPLERS:
+        HYPERPARAMS_SAMPLER.setdefault(algo, zoo_sampler(algo))  # type: ignore[arg-type]  # typed as its first entry
+
+
+__all__ = ["NET_ARCHS", "SAMPLERS", "Sampler", "Space", "register_zoo_samplers", "sample", "zoo_sampler"]

@@ -11,11 +11,15 @@ from sb3_adc.zoo.bridge import main
 
 def register_algorithms() -> None:
     """Add sb3-adc's algorithms (``adc``, ``vanilla_ac``, ``ddpg`` with a critic learning rate, ``td3`` with an
-    averaged actor, and every name added to ``sb3_adc.config.algorithms.ALGORITHMS``) to ``rl_zoo3.utils.ALGOS``."""
+    averaged actor, and every name added to ``sb3_adc.config.algorithms.ALGORITHMS``) to ``rl_zoo3.utils.ALGOS``,
+    and the search spaces of ``adc`` and ``vanilla_ac`` to ``rl_zoo3.hyperparams_opt.HYPERPARAMS_SAMPLER``
+    (:func:`~sb3_adc.experiment.samplers.register_zoo_samplers`)."""
     with requires_extra("zoo", "sb3_adc.zoo.register_algorithms"):
         from sb3_adc.experiment.manager import register_algorithms as register
+        from sb3_adc.experiment.samplers import register_zoo_samplers
 
     register()
+    register_zoo_samplers()
 
 
 __all__ = ["main", "register_algorithms"]

@@ -249,7 +249,7 @@ def test_an_alias_bomb_in_a_run_file_is_an_error(cli, trained_runs, tmp_path, na
     for command in (["train", "--resume", run_dir], ["enjoy", "--run-dir", run_dir, "-n", 1]):
         status, _, err = cli(*command)
         assert status == 2
-        assert f"{run_dir / 'Pendulum-v1' / name}: file is over a limit of sb3_adc.config.loader" in err
+        assert f"{run_dir / 'Pendulum-v1' / name}: file is over a limit of sb3_adc.config.yaml_files" in err
         assert "more than MAX_EXPANDED_VALUES" in err
 
 

@@ -6,7 +6,7 @@ import tracemalloc
 
 import pytest
 
-from sb3_adc.config import HyperparamsError, load_hyperparams, loader, parse_overrides, read_hyperparams_file
+from sb3_adc.config import HyperparamsError, load_hyperparams, parse_overrides, read_hyperparams_file, yaml_files
 from sb3_adc.config.errors import MAX_SHOWN_CHARACTERS, short_repr
 from sb3_adc.config.expressions import parse_expression
 
@@ -56,10 +56,10 @@ def test_alias_bombs_fail_fast_with_a_short_error(tmp_path, text):
 
 
 def test_alias_count_is_bounded(tmp_path):
-    aliases = "".join(f"  k{i}: *x\n" for i in range(loader.MAX_ALIASES + 1))
+    aliases = "".join(f"  k{i}: *x\n" for i in range(yaml_files.MAX_ALIASES + 1))
     path = tmp_path / "aliases.yml"
     path.write_text("x: &x 1\nPendulum-v1:\n" + aliases)
-    with pytest.raises(HyperparamsError, match=rf"more than {loader.MAX_ALIASES} aliases") as error:
+    with pytest.raises(HyperparamsError, match=rf"more than {yaml_files.MAX_ALIASES} aliases") as error:
         read_hyperparams_file(str(path))
     check_short_error(error.value, path)
 
@@ -80,14 +80,14 @@ def test_plain_aliases_and_merge_keys_still_work(tmp_path):
 def test_deep_nesting_is_an_error_not_a_recursion_error(tmp_path, nesting):
     path = tmp_path / "deep.yml"
     path.write_text(f"Pendulum-v1:\n  policy_kwargs: {nesting}\n")
-    with pytest.raises(HyperparamsError, match=rf"nested more than {loader.MAX_DEPTH} levels deep") as error:
+    with pytest.raises(HyperparamsError, match=rf"nested more than {yaml_files.MAX_DEPTH} levels deep") as error:
         read_hyperparams_file(str(path))
     check_short_error(error.value, path)
 
 
 def test_nesting_up_to_the_limit_is_read(tmp_path):
     path = tmp_path / "deep.yml"
-    depth = loader.MAX_DEPTH - 2  # the document's mapping and the entry's are levels too
+    depth = yaml_files.MAX_DEPTH - 2  # the document's mapping and the entry's are levels too
     path.write_text(f"Pendulum-v1:\n  x: {'[' * depth}1{']' * depth}\n")
     value = read_hyperparams_file(str(path))["Pendulum-v1"]["x"]
     for _ in range(depth):
@@ -98,14 +98,14 @@ def test_nesting_up_to_the_limit_is_read(tmp_path):
 def test_large_files_are_refused_before_parsing(tmp_path):
     path = tmp_path / "large.yml"
     padding = "# " + "x" * 98 + "\n"
-    path.write_text(ENTRY + padding * (loader.MAX_FILE_BYTES // len(padding) + 1))
+    path.write_text(ENTRY + padding * (yaml_files.MAX_FILE_BYTES // len(padding) + 1))
     started = time.perf_counter()
-    with pytest.raises(HyperparamsError, match=rf"larger than {loader.MAX_FILE_BYTES} bytes") as error:
+    with pytest.raises(HyperparamsError, match=rf"larger than {yaml_files.MAX_FILE_BYTES} bytes") as error:
         read_hyperparams_file(str(path))
     assert time.perf_counter() - started < 1.0
     check_short_error(error.value, path)
     # Just under the limit is read.
-    path.write_text(ENTRY + padding * ((loader.MAX_FILE_BYTES - len(ENTRY)) // len(padding)))
+    path.write_text(ENTRY + padding * ((yaml_files.MAX_FILE_BYTES - len(ENTRY)) // len(padding)))
     assert read_hyperparams_file(str(path))["Pendulum-v1"]["n_timesteps"] == 1000
 
 

@@ -122,7 +122,7 @@ def test_zoo_enjoy_stops_an_alias_bomb(zoo_run, tmp_path, capsys):
     )
     (run_dir / "Pendulum-v1" / "args.yml").write_text(bomb)
     assert main(["enjoy", "--algo", "adc", "--env", "Pendulum-v1", "-f", str(tmp_path / "logs"), "--no-render", "-n=1"]) == 2
-    assert "args.yml: file is over a limit of sb3_adc.config.loader" in capsys.readouterr().err
+    assert "args.yml: file is over a limit of sb3_adc.config.yaml_files" in capsys.readouterr().err
 
 
 def test_zoo_params_are_parsed_not_evaluated(tmp_path, capsys):
@@ -194,3 +194,48 @@ def test_zoo_optimize_draws_from_our_search_space(tmp_path, capsys):
     assert "critic_design" in drawn
     assert "n_intervals" in drawn
     assert "gamma" not in drawn
+
+
+def test_the_zoos_own_objective_tunes_adc_with_our_search_space(tmp_path):
+    """register_algorithms puts ADC's space in the Zoo's sampler table (its own spaces stay): the Zoo's
+    ExperimentManager then runs a trial of ADC whose drawn values are ours, validated as an entry."""
+    import argparse
+
+    import optuna
+    from rl_zoo3.exp_manager import ExperimentManager
+    from rl_zoo3.hyperparams_opt import HYPERPARAMS_SAMPLER, sample_td3_params
+
+    from sb3_adc.zoo import register_algorithms
+
+    register_algorithms()
+    assert HYPERPARAMS_SAMPLER["td3"] is sample_td3_params
+    conf = tmp_path / "adc.yml"
+    conf.write_text("Pendulum-v1:\n  n_timesteps: 200\n  policy: MlpPolicy\n")
+    storage = str(tmp_path / "study.log")
+    manager = ExperimentManager(
+        argparse.Namespace(), "adc", "Pendulum-v1", str(tmp_path), optimize_hyperparameters=True, n_trials=1,
+        n_timesteps=200, n_evaluations=1, n_eval_episodes=1, config=str(conf), sampler="random", pruner="none",
+        storage=storage, study_name="zoo", n_startup_trials=0, seed=0, verbose=0,
+    )  # fmt: skip
+    assert manager.setup_experiment() is None
+    manager.hyperparameters_optimization()
+    backend = optuna.storages.journal.JournalFileBackend(storage)
+    (trial,) = optuna.load_study(study_name="zoo", storage=optuna.storages.JournalStorage(backend)).trials
+    assert trial.state == optuna.trial.TrialState.COMPLETE
+    assert {"critic_design", "n_intervals", "critic_rate_ratio", "noise_type"} <= set(trial.params)
+
+
+def test_zoo_sampler_returns_validated_constructor_keywords():
+    import optuna
+
+    from sb3_adc.common.noise import EpsilonGaussianNoise
+    from sb3_adc.experiment.samplers import zoo_sampler
+
+    study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0))
+    study.enqueue_trial({"noise_type": "epsilon-normal", "noise_std": 0.2, "critic_design": "paper"})
+    kwargs = zoo_sampler("adc")(study.ask(), 3, 1, {})
+    assert isinstance(kwargs["action_noise"], EpsilonGaussianNoise)
+    assert kwargs["action_noise"]().shape == (3,)
+    assert kwargs["policy_kwargs"]["critic_design"] == "paper"
+    assert "policy" not in kwargs
+    ADC("MlpPolicy", "Pendulum-v1", **{**kwargs, "action_noise": None}).learn(10)
