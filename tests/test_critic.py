@@ -6,7 +6,6 @@ import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.utils import ConstantSchedule
 
-from sb3_adc.adc import policies
 from sb3_adc.adc.policies import ADCPolicy, DuelingIntervalCritic
 
 
@@ -67,17 +66,13 @@ def reference_q(value, advantages, actions, aggregation, interpolation):
     return value + (selected - baseline).sum(-1, keepdim=True)
 
 
-@pytest.mark.parametrize("row_reading", [False, True])
 @pytest.mark.parametrize("interpolation", ["none", "linear"])
 @pytest.mark.parametrize("aggregation", ["mean", "max"])
 @pytest.mark.parametrize(("value_net_arch", "advantage_net_arch"), [([], []), ([8], []), ([], [8]), ([8], [8])])
 @pytest.mark.parametrize("action_dim", [1, 2])
 def test_q_equals_value_plus_centred_advantage_of_the_action_interval(
-    monkeypatch, action_dim, value_net_arch, advantage_net_arch, aggregation, interpolation, row_reading
+    action_dim, value_net_arch, advantage_net_arch, aggregation, interpolation
 ):
-    # The critic picks the cheapest of three equivalent computations (reading centred weight rows, one weighted
-    # sum over [V | A], or the two streams): each must give Eq. 13-14 (Eq. 11 for max).
-    monkeypatch.setattr(policies, "ROW_READING_MIN_MACS", 0 if row_reading else 10**12)
     critic = make_policy(
         action_dim=action_dim,
         value_net_arch=value_net_arch,
@@ -89,22 +84,6 @@ def test_q_equals_value_plus_centred_advantage_of_the_action_interval(
     value, advantages, _ = critic.decompose(obs, actions)
     expected = reference_q(value, advantages, actions, aggregation, interpolation)
     th.testing.assert_close(critic(obs, actions)[0], expected)
-
-
-@pytest.mark.parametrize("interpolation", ["none", "linear"])
-@pytest.mark.parametrize("value_net_arch", [[], [8]])
-def test_row_reading_has_the_same_gradients(monkeypatch, value_net_arch, interpolation):
-    policy = make_policy(action_dim=2, value_net_arch=value_net_arch, advantage_interpolation=interpolation)
-    obs, actions = batch(2)
-    gradients = []
-    for threshold in (0, 10**12):
-        monkeypatch.setattr(policies, "ROW_READING_MIN_MACS", threshold)
-        policy.critic.zero_grad()
-        action_input = actions.clone().requires_grad_(True)
-        policy.critic.q1_forward(obs, action_input).sum().backward()
-        gradients.append([action_input.grad, *(p.grad for p in policy.critic.parameters())])
-    for with_rows, without_rows in zip(*gradients, strict=True):
-        th.testing.assert_close(with_rows, without_rows)
 
 
 @pytest.mark.parametrize("value_net_arch", [[], [8]])

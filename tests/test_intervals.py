@@ -183,21 +183,19 @@ def test_partition_memory_is_linear_in_n_intervals():
     partition = UniformIntervalPartition(MAX_N_INTERVALS)
     assert sum(buffer.numel() for buffer in partition.buffers()) <= 3 * MAX_N_INTERVALS + 1
     actions = th.tensor([[-1.0], [0.0], [0.99]])
-    weights = partition.q_weights(actions, None, "mean", "none")
-    assert weights.shape == (3, 1 + MAX_N_INTERVALS)
+    weights = partition.centred_weights(actions, None, "mean", "none")
+    assert weights.shape == (3, 1, MAX_N_INTERVALS)
     index = partition.index(actions).view(-1)
     assert index[0] == 0
     assert index[2] > index[1] > 0
-    assert weights[th.arange(3), 1 + index].tolist() == pytest.approx([1 - 1 / MAX_N_INTERVALS] * 3)
-    assert weights.sum().item() == pytest.approx(3.0, abs=1e-3)  # the value's weight; the centred ones sum to 0
-    table = th.arange(MAX_N_INTERVALS, dtype=th.float32).unsqueeze(1)
-    assert partition.read_rows(table, actions, "none").view(-1).tolist() == index.float().tolist()
+    assert weights[th.arange(3), 0, index].tolist() == pytest.approx([1 - 1 / MAX_N_INTERVALS] * 3)
+    assert weights.sum().item() == pytest.approx(0.0, abs=1e-3)  # the centred weights sum to 0
 
 
 @pytest.mark.parametrize("action_dim", [1, 3])
 @pytest.mark.parametrize("interpolation", ["none", "linear"])
 @pytest.mark.parametrize("aggregation", ["mean", "max"])
-def test_q_weights_are_one_then_the_centred_weights_of_the_equations(action_dim, interpolation, aggregation):
+def test_centred_weights_are_those_of_the_equations(action_dim, interpolation, aggregation):
     n = 6
     partition = UniformIntervalPartition(n)
     th.manual_seed(0)
@@ -212,8 +210,8 @@ def test_q_weights_are_one_then_the_centred_weights_of_the_equations(action_dim,
         share = (position - lower).unsqueeze(-1)
         selection = eye[lower] * (1 - share) + eye[lower + 1] * share
     centre = 1.0 / n if aggregation == "mean" else eye[advantages.argmax(dim=-1)]
-    expected = th.cat([th.ones(32, 1), (selection - centre).flatten(1)], dim=1)
-    weights = partition.q_weights(actions, advantages, aggregation, interpolation)
+    expected = selection - centre
+    weights = partition.centred_weights(actions, advantages, aggregation, interpolation)
     assert th.allclose(weights, expected, atol=1e-6)
     assert th.allclose(partition.selection_weights(actions, interpolation), selection, atol=1e-6)
 
@@ -221,5 +219,4 @@ def test_q_weights_are_one_then_the_centred_weights_of_the_equations(action_dim,
 def test_weights_follow_the_module_dtype():
     partition = UniformIntervalPartition(5).double()
     actions = th.tensor([[0.3]], dtype=th.float64)
-    assert partition.q_weights(actions, None, "mean", "none").dtype == th.float64
     assert partition.centred_weights(actions, None, "mean", "none").dtype == th.float64

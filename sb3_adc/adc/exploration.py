@@ -18,40 +18,9 @@ softmax.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import torch as th
-
-
-def check_interval_exploration(interval_exploration: object) -> None:
-    """
-    Raise ``ValueError`` unless ``interval_exploration`` is a number in ``[0, 1]`` (see :class:`~sb3_adc.ADC`).
-
-    :param interval_exploration: Probability ``p`` that an action component is drawn from the Boltzmann
-        distribution of the interval advantages instead of the actor plus its action noise
-    """
-    if (
-        isinstance(interval_exploration, bool)
-        or not isinstance(interval_exploration, (int, float))
-        or not 0 <= interval_exploration <= 1
-    ):
-        raise ValueError(f"`interval_exploration` must be a number in [0, 1], got {interval_exploration!r}.")
-
-
-def check_interval_temperature(interval_temperature: object) -> None:
-    """
-    Raise ``ValueError`` unless ``interval_temperature`` is a finite number > 0 (see :class:`~sb3_adc.ADC`).
-
-    :param interval_temperature: Temperature ``T`` of the Boltzmann distribution ``softmax(A(s, z) / T)`` over the
-        interval centres, in the units of the critic's Q-values
-    """
-    if (
-        isinstance(interval_temperature, bool)
-        or not isinstance(interval_temperature, (int, float))
-        or not 0 < interval_temperature < math.inf
-    ):
-        raise ValueError(f"`interval_temperature` must be a finite number > 0, got {interval_temperature!r}.")
 
 
 def boltzmann_interval_draw(

@@ -25,7 +25,6 @@ from typing import Literal, get_args
 
 import torch as th
 from torch import nn
-from torch.nn import functional as F
 
 Aggregation = Literal["mean", "max"]
 Interpolation = Literal["none", "linear"]
@@ -174,54 +173,6 @@ class UniformIntervalPartition(nn.Module):
             raise ValueError('`advantages` are needed to centre on their maximum (aggregation="max").')
         # The gradient of max_z A is the unit vector of the arg max.
         return weights - self._one_hot(advantages.detach().argmax(dim=-1))
-
-    def read_rows(self, table: th.Tensor, actions: th.Tensor, interpolation: Interpolation) -> th.Tensor:
-        """
-        Per sample, the sum over action branches of the table rows the actions select: ``sum_d sum_z w_{d,z} T[d, z]``
-        with the weights of :meth:`selection_weights`, read without forming them.
-
-        :param table: ``(action_dim * n_intervals, width)``, branch-major
-        :param actions: ``(batch, action_dim)`` scaled actions
-        :param interpolation: ``"none"`` or ``"linear"``
-        :return: ``(batch, width)``
-        """
-        batch, action_dim = actions.shape
-        n = self.n_intervals
-        offsets = th.arange(0, action_dim * n, n, device=actions.device) if action_dim > 1 else 0
-        if interpolation == "none":
-            rows = table.index_select(0, (self.index(actions) + offsets).flatten()).view(batch, action_dim, -1)
-        else:
-            lower, upper_share = self._neighbour_centres(actions)
-            lower = (lower + offsets).flatten()
-            below = table.index_select(0, lower).view(batch, action_dim, -1)
-            above = table.index_select(0, lower + 1).view(batch, action_dim, -1)
-            rows = below + upper_share.unsqueeze(-1) * (above - below)
-        return rows.sum(dim=1) if action_dim > 1 else rows.view(batch, -1)
-
-    def q_weights(
-        self,
-        actions: th.Tensor,
-        advantages: th.Tensor | None,
-        aggregation: Aggregation,
-        interpolation: Interpolation,
-    ) -> th.Tensor:
-        """
-        Weights ``[1 | c]`` over ``[V | A]`` (the value, then the flattened advantages) such that their weighted sum
-        is ``Q`` (Eq. 11 or Eq. 14), with ``c`` the :meth:`centred_weights`.
-
-        :param actions: ``(batch, action_dim)`` scaled actions
-        :param advantages: ``(batch, action_dim, n_intervals)``, needed for ``aggregation="max"`` only
-        :param aggregation: ``"mean"`` or ``"max"``
-        :param interpolation: ``"none"`` or ``"linear"``
-        :return: ``(batch, 1 + action_dim * n_intervals)``
-        """
-        if aggregation == "mean" and interpolation == "none" and actions.shape[1] == 1:
-            # The paper's case, in one scatter: [1 | e_{z_a} - 1/n].
-            n = self.n_intervals
-            weights = self._filled((actions.shape[0], 1 + n), -1.0 / n)
-            weights[:, 0] = 1.0
-            return weights.scatter_(1, self.index(actions).view(-1, 1) + 1, 1.0 - 1.0 / n)
-        return F.pad(self.centred_weights(actions, advantages, aggregation, interpolation).flatten(1), (1, 0), value=1.0)
 
     def select(self, advantages: th.Tensor, actions: th.Tensor, interpolation: Interpolation) -> th.Tensor:
         """

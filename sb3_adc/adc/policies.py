@@ -1,6 +1,7 @@
+"""The ADC policies (TD3's actor with a dueling interval critic) and the critic itself, with its options."""
+
 from __future__ import annotations
 
-import itertools
 from typing import Any, Literal, get_args
 
 import torch as th
@@ -10,180 +11,34 @@ from stable_baselines3.common.preprocessing import get_action_dim
 from stable_baselines3.common.torch_layers import (
     BaseFeaturesExtractor,
     CombinedExtractor,
-    FlattenExtractor,
     NatureCNN,
-    create_mlp,
 )
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
-from torch.nn import functional as F
 
-from sb3_adc.adc.designs import ActionAdvantageNetwork, LegendreAdvantageNetwork, StateValueIntervalNetwork
-from sb3_adc.adc.intervals import Aggregation, Interpolation, UniformIntervalPartition, aggregate, validate_interval_options
+from sb3_adc.adc.designs import (
+    ActionAdvantageNetwork,
+    CriticNetwork,
+    DuelingIntervalNetwork,
+    NetworkSpec,
+    StateValueIntervalNetwork,
+)
+from sb3_adc.adc.intervals import Aggregation, Interpolation, UniformIntervalPartition, validate_interval_options
+from sb3_adc.adc.legendre import LegendreAdvantageNetwork
 from sb3_adc.common.actor_average import ActorAverageTD3Policy
 from sb3_adc.common.fast_update import fast_optimizer_kwargs
 from sb3_adc.common.spaces import check_action_space
 
-#: Multiply-accumulates (batch x trunk width x advantage outputs) from which a single-layer advantage stream reads
-#: one centred weight row per sample instead of computing every interval's advantage (see
-#: :meth:`DuelingIntervalNetwork.q_value`). Below it, computing them all costs fewer operations.
-ROW_READING_MIN_MACS = 2**21
-
-
-class DuelingIntervalNetwork(nn.Module):
-    """
-    One dueling critic network: a shared trunk over ``[features, action]`` (the paper's first layer
-    ``theta^Q``), a value stream (``beta``) and an advantage stream (``alpha``) with ``n_intervals`` outputs
-    per action dimension.
-
-    The first layers of the two streams read the same trunk output, so one ``nn.Linear`` (``stream_inputs``)
-    computes both and its output is split between them: mathematically two separate layers, at half the
-    per-layer cost of the optimizer and the target updates.
-
-    This is ``critic_design="paper"``; the other designs are in :mod:`sb3_adc.adc.designs`.
-
-    :param input_dim: ``features_dim + action_dim``
-    :param action_dim: Number of action dimensions (advantage branches)
-    :param n_intervals: Number of intervals per action dimension
-    :param net_arch: Hidden layer sizes of the shared trunk
-    :param value_net_arch: Hidden layer sizes of the value stream (its output layer has 1 unit)
-    :param advantage_net_arch: Hidden layer sizes of the advantage stream (its output layer has
-        ``action_dim * n_intervals`` units)
-    :param activation_fn: Activation function
-    """
-
-    def __init__(
-        self,
-        input_dim: int,
-        action_dim: int,
-        n_intervals: int,
-        net_arch: list[int],
-        value_net_arch: list[int],
-        advantage_net_arch: list[int],
-        activation_fn: type[nn.Module],
-    ):
-        super().__init__()
-        self.action_dim = action_dim
-        self.n_intervals = n_intervals
-        trunk_dim = net_arch[-1] if net_arch else input_dim
-        value_sizes = [*value_net_arch, 1]
-        advantage_sizes = [*advantage_net_arch, action_dim * n_intervals]
-        # An empty trunk is the identity: both streams then see [features, action] directly.
-        self.trunk = nn.Sequential(*create_mlp(input_dim, -1, net_arch, activation_fn))
-        self.stream_inputs = nn.Linear(trunk_dim, value_sizes[0] + advantage_sizes[0])
-        self.split_sizes = (value_sizes[0], advantage_sizes[0])
-        # The layers after the first of each stream; None for a single-layer stream.
-        self.value_stream = nn.Sequential(*_stream_tail(value_sizes, activation_fn)) if value_net_arch else None
-        self.advantage_stream = nn.Sequential(*_stream_tail(advantage_sizes, activation_fn)) if advantage_net_arch else None
-
-    def streams(self, head_outputs: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        """
-        The rest of both streams, from the output of the trunk and ``stream_inputs``.
-
-        :param head_outputs: ``(batch, value_first + advantage_first)``
-        :return: value ``(batch, 1)`` and advantages ``(batch, action_dim, n_intervals)``
-        """
-        value, advantages = head_outputs.split(self.split_sizes, dim=1)
-        if self.value_stream is not None:
-            value = self.value_stream(value)
-        if self.advantage_stream is not None:
-            advantages = self.advantage_stream(advantages)
-        return value, advantages.view(-1, self.action_dim, self.n_intervals)
-
-    def forward(self, features: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        """
-        :param features: ``(batch, features_dim)``
-        :param actions: Scaled actions ``(batch, action_dim)``
-        :return: value ``(batch, 1)`` and advantages ``(batch, action_dim, n_intervals)``
-        """
-        return self.streams(self.stream_inputs(self.trunk(th.cat([features, actions], dim=1))))
-
-    def q_value(
-        self,
-        features: th.Tensor,
-        actions: th.Tensor,
-        partition: UniformIntervalPartition,
-        aggregation: Aggregation,
-        interpolation: Interpolation,
-    ) -> th.Tensor:
-        """
-        ``Q(s, a)`` (Eq. 11 or Eq. 13-14), computed in the cheapest of three equivalent ways:
-
-        - with a single-layer advantage stream, mean aggregation and a large batch: the centred advantage
-          ``A(s, z) - mean_z A(s, z) = (w_z - mean_z w_z) . h + (b_z - mean_z b_z)`` is the dot product of the
-          trunk output ``h`` with one row of the centred advantage layer, so each sample reads its row instead of
-          computing all ``n_intervals`` advantages;
-        - with single-layer streams, ``[V | A]`` are the outputs of one layer: one weighted sum with weights
-          ``[1 | c]`` (:meth:`UniformIntervalPartition.q_weights`);
-        - otherwise, both streams, then :func:`aggregate`.
-
-        :param features: ``(batch, features_dim)``
-        :param actions: Scaled actions ``(batch, action_dim)``
-        :param partition: The intervals of the action range
-        :param aggregation: ``"mean"`` or ``"max"``
-        :param interpolation: ``"none"`` or ``"linear"``
-        :return: ``(batch, 1)``
-        """
-        hidden = self.trunk(th.cat([features, actions], dim=1))
-        if (
-            self.advantage_stream is None
-            and aggregation == "mean"
-            and hidden.shape[0] * hidden.shape[1] * self.split_sizes[1] >= ROW_READING_MIN_MACS
-        ):
-            return self._q_value_from_rows(hidden, actions, partition, interpolation)
-        head_outputs = self.stream_inputs(hidden)
-        if self.value_stream is None and self.advantage_stream is None:
-            advantages = head_outputs[:, 1:].view(-1, self.action_dim, self.n_intervals) if aggregation == "max" else None
-            return (head_outputs * partition.q_weights(actions, advantages, aggregation, interpolation)).sum(
-                dim=1, keepdim=True
-            )
-        value, advantages = self.streams(head_outputs)
-        return aggregate(value, advantages, partition.centred_weights(actions, advantages, aggregation, interpolation))
-
-    def _q_value_from_rows(
-        self, hidden: th.Tensor, actions: th.Tensor, partition: UniformIntervalPartition, interpolation: Interpolation
-    ) -> th.Tensor:
-        n_value = self.split_sizes[0]
-        # The layer with its bias as a last column, to read weights and bias in one row: [w_z | b_z] . [h | 1].
-        layer = th.cat([self.stream_inputs.weight, self.stream_inputs.bias.unsqueeze(1)], dim=1)
-        advantage_rows = layer[n_value:].view(self.action_dim, self.n_intervals, -1)
-        centred = (advantage_rows - advantage_rows.mean(dim=1, keepdim=True)).view(self.action_dim * self.n_intervals, -1)
-        rows = partition.read_rows(centred, actions, interpolation)
-        hidden = F.pad(hidden, (0, 1), value=1.0)
-        if self.value_stream is None:
-            return (hidden * (rows + layer[0])).sum(dim=1, keepdim=True)
-        value = self.value_stream(F.linear(hidden, layer[:n_value]))
-        return value + (hidden * rows).sum(dim=1, keepdim=True)
-
-    def stream_layer_sizes(self) -> dict[str, list[tuple[int, int]]]:
-        """``(in_features, out_features)`` of every linear layer of the trunk and of each stream."""
-
-        def linear_sizes(layers: nn.Sequential | None) -> list[tuple[int, int]]:
-            return [] if layers is None else [(m.in_features, m.out_features) for m in layers if isinstance(m, nn.Linear)]
-
-        first_value, first_advantage = self.split_sizes
-        first_in = self.stream_inputs.in_features
-        return {
-            "trunk": linear_sizes(self.trunk),
-            "value": [(first_in, first_value), *linear_sizes(self.value_stream)],
-            "advantage": [(first_in, first_advantage), *linear_sizes(self.advantage_stream)],
-        }
-
-
-def _stream_tail(sizes: list[int], activation_fn: type[nn.Module]) -> list[nn.Module]:
-    """The layers of a stream after its first linear layer: an activation and a linear layer per step."""
-    layers: list[nn.Module] = []
-    for in_features, out_features in itertools.pairwise(sizes):
-        layers += [activation_fn(), nn.Linear(in_features, out_features)]
-    return layers
-
-
-#: A critic network of any design: each has ``forward(features, actions)`` and ``q_value(...)``.
-CriticNetwork = DuelingIntervalNetwork | StateValueIntervalNetwork | LegendreAdvantageNetwork | ActionAdvantageNetwork
-
 CriticDesign = Literal["paper", "state_value", "legendre", "action_network"]
 #: The designs of the dueling interval critic (``critic_design``), see :class:`DuelingIntervalCritic`.
 CRITIC_DESIGNS: tuple[str, ...] = get_args(CriticDesign)
+#: The network class of each critic design.
+_NETWORKS: dict[str, type[CriticNetwork]] = {
+    "paper": DuelingIntervalNetwork,
+    "state_value": StateValueIntervalNetwork,
+    "legendre": LegendreAdvantageNetwork,
+    "action_network": ActionAdvantageNetwork,
+}
 #: The designs whose advantage has one output per interval (the others evaluate it at the action itself).
 INTERVAL_OUTPUT_DESIGNS = ("paper", "state_value")
 #: The designs whose ``Q`` at every interval centre comes from one pass (see
@@ -236,20 +91,13 @@ class DuelingIntervalCritic(BaseModel):
 
     Actor-Dueling-Critic paper, Section 4 and Figure 3: a value stream ``V`` and an advantage stream with one
     value per uniform interval of the action range, combined as ``Q = V + A(s, z_a) - mean_z A(s, z)``
-    (Eq. 13-14), or with ``max`` in place of ``mean`` (Eq. 11). ``critic_design`` chooses what computes them:
-
-    - ``"paper"``: the paper's form, a shared trunk over (state, action) under both streams, one advantage output
-      per interval (:class:`DuelingIntervalNetwork`);
-    - ``"state_value"``: ``V`` from the state only, the paper's interval advantages on a trunk over (state, action);
-    - ``"legendre"`` (the default): ``V`` and a polynomial advantage from the state only,
-      ``A(s, a) = sum_k c_k(s) P_k(a)``, centred on its mean over the interval centres. That mean is nearly zero
-      (below 1.7e-4 per coefficient for 100 intervals, 4.2e-3 for 20, at degree 4), so this is in effect a
-      state-dependent polynomial advantage (the family of NAF and Q-functionals) and ``n_intervals`` barely
-      changes it;
-    - ``"action_network"``: ``V`` from the state only, an advantage network over (state, action) evaluated at the
-      action and centred on its mean over the interval centres.
-
-    See :mod:`sb3_adc.adc.designs` for the equations of each design.
+    (Eq. 13-14), or with ``max`` in place of ``mean`` (Eq. 11). ``critic_design`` chooses the network that computes
+    them (:mod:`sb3_adc.adc.designs` gives the equations of each): ``"paper"``, the paper's form, a shared trunk over
+    (state, action) under both streams, one advantage output per interval; ``"state_value"``, ``V`` from the state
+    only; ``"legendre"`` (the default), ``V`` and a polynomial advantage ``A(s, a) = sum_k c_k(s) P_k(a)`` from the
+    state only, in effect a state-dependent polynomial advantage (the family of NAF and Q-functionals) on which
+    ``n_intervals`` barely matters; ``"action_network"``, ``V`` from the state only and an advantage network over
+    (state, action) evaluated at the action, centred on its mean over the interval centres.
 
     It honours the contract of SB3's :class:`~stable_baselines3.common.policies.ContinuousCritic`, so
     TD3's update machinery applies: ``forward`` returns one ``(batch, 1)`` Q tensor per critic network,
@@ -312,7 +160,6 @@ class DuelingIntervalCritic(BaseModel):
         check_action_space(action_space)
         validate_critic_options(critic_design, n_intervals, aggregation, advantage_interpolation, basis_degree, n_critics)
 
-        action_dim = get_action_dim(self.action_space)
         self.share_features_extractor = share_features_extractor
         self.n_critics = n_critics
         self.n_intervals = n_intervals
@@ -320,21 +167,20 @@ class DuelingIntervalCritic(BaseModel):
         self.aggregation: Aggregation = aggregation
         self.advantage_interpolation: Interpolation = advantage_interpolation
         self.partition = UniformIntervalPartition(n_intervals)
-        self.q_networks: list[CriticNetwork] = []
-        for idx in range(n_critics):
-            q_net = _make_network(
-                critic_design,
-                features_dim,
-                action_dim,
-                n_intervals,
-                list(net_arch),
-                list(value_net_arch or []),
-                list(advantage_net_arch or []),
-                activation_fn,
-                basis_degree,
-            )
+        spec = NetworkSpec(
+            features_dim,
+            get_action_dim(self.action_space),
+            n_intervals,
+            list(net_arch),
+            list(value_net_arch or []),
+            list(advantage_net_arch or []),
+            activation_fn,
+            aggregation,
+            basis_degree,
+        )
+        self.q_networks: list[CriticNetwork] = [_NETWORKS[critic_design](spec) for _ in range(n_critics)]
+        for idx, q_net in enumerate(self.q_networks):
             self.add_module(f"qf{idx}", q_net)
-            self.q_networks.append(q_net)
 
     def forward(self, obs: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, ...]:
         """
@@ -342,13 +188,11 @@ class DuelingIntervalCritic(BaseModel):
         :param actions: Scaled actions ``(batch, action_dim)`` in ``[-1, 1]``
         :return: One ``(batch, 1)`` Q-value tensor per critic network
         """
-        # Learn the features extractor using the policy loss only
-        # when the features_extractor is shared with the actor
+        # A features extractor shared with the actor learns from the policy loss only.
         with th.set_grad_enabled(not self.share_features_extractor):
             features = self.extract_features(obs, self.features_extractor)
         return tuple(
-            q_net.q_value(features, actions, self.partition, self.aggregation, self.advantage_interpolation)
-            for q_net in self.q_networks
+            q_net.q_value(features, actions, self.partition, self.advantage_interpolation) for q_net in self.q_networks
         )
 
     def q1_forward(self, obs: th.Tensor, actions: th.Tensor) -> th.Tensor:
@@ -361,7 +205,7 @@ class DuelingIntervalCritic(BaseModel):
         """
         with th.no_grad():
             features = self.extract_features(obs, self.features_extractor)
-        return self.q_networks[0].q_value(features, actions, self.partition, self.aggregation, self.advantage_interpolation)
+        return self.q_networks[0].q_value(features, actions, self.partition, self.advantage_interpolation)
 
     def decompose(self, obs: PyTorchObs, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
         """
@@ -369,11 +213,10 @@ class DuelingIntervalCritic(BaseModel):
 
         :param obs: Observations
         :param actions: Scaled actions ``(batch, action_dim)``
-        :return: ``value`` of shape ``(batch, 1)``, ``advantages`` of shape ``(batch, branches, n_intervals)``
-            (raw, before centring: the interval outputs, or the advantage at the interval centres for the designs
-            that evaluate it at the action; ``branches`` is ``action_dim``, or 1 for ``"action_network"``, whose
-            advantage reads the whole action) and ``interval_index`` of shape ``(batch, action_dim)``, the interval
-            that contains each action component
+        :return: ``value`` ``(batch, 1)``, the raw ``advantages`` ``(batch, branches, n_intervals)`` (before
+            centring: the interval outputs, or the advantage at the interval centres; ``branches`` is ``action_dim``,
+            or 1 for ``"action_network"``, whose advantage reads the whole action) and ``interval_index``
+            ``(batch, action_dim)``, the interval that contains each action component
         """
         features = self.extract_features(obs, self.features_extractor)
         value, advantages = self.q_networks[0](features, actions)
@@ -386,10 +229,9 @@ class DuelingIntervalCritic(BaseModel):
         ``z* = argmax_z Q_1(s, z)`` over the ``n_intervals ** action_dim`` points whose every component is an
         interval centre, and ``Q_1(s, z*)``.
 
-        ADC paper, Eq. 13-14 (Eq. 11 with ``aggregation="max"``) evaluated at every interval centre. The
-        ``"legendre"`` critic computes the advantage of every centre in one pass of its state heads, and its ``Q`` is
-        a sum of one term per action dimension, so the per-dimension argmax is the argmax over the whole grid (see
-        :meth:`~sb3_adc.adc.designs.LegendreAdvantageNetwork.greedy_intervals`). Evaluated without gradient.
+        ADC paper, Eq. 13-14 (Eq. 11 with ``aggregation="max"``) at every interval centre, from one pass of the
+        ``"legendre"`` network (:meth:`~sb3_adc.adc.legendre.LegendreAdvantageNetwork.greedy_intervals`). Evaluated
+        without gradient.
 
         :param obs: Observations
         :return: ``z*`` ``(batch, action_dim)``, scaled actions in ``[-1, 1]``, and ``Q_1(s, z*)`` ``(batch, 1)``
@@ -397,7 +239,7 @@ class DuelingIntervalCritic(BaseModel):
         """
         q_net = self._one_pass_network("greedy_action")
         features = self.extract_features(obs, self.features_extractor)
-        index, value = q_net.greedy_intervals(features, self.aggregation)
+        index, value = q_net.greedy_intervals(features)
         return self.partition.centres[index], value
 
     @th.no_grad()
@@ -424,35 +266,6 @@ class DuelingIntervalCritic(BaseModel):
         return q_net
 
 
-def _make_network(
-    critic_design: CriticDesign,
-    features_dim: int,
-    action_dim: int,
-    n_intervals: int,
-    net_arch: list[int],
-    value_net_arch: list[int],
-    advantage_net_arch: list[int],
-    activation_fn: type[nn.Module],
-    basis_degree: int,
-) -> CriticNetwork:
-    """One critic network of the given design."""
-    if critic_design == "paper":
-        return DuelingIntervalNetwork(
-            features_dim + action_dim, action_dim, n_intervals, net_arch, value_net_arch, advantage_net_arch, activation_fn
-        )
-    if critic_design == "legendre":
-        return LegendreAdvantageNetwork(
-            features_dim, action_dim, n_intervals, net_arch, value_net_arch, advantage_net_arch, activation_fn, basis_degree
-        )
-    if critic_design == "state_value":
-        return StateValueIntervalNetwork(
-            features_dim, action_dim, n_intervals, net_arch, value_net_arch, advantage_net_arch, activation_fn
-        )
-    return ActionAdvantageNetwork(
-        features_dim, action_dim, n_intervals, net_arch, value_net_arch, advantage_net_arch, activation_fn
-    )
-
-
 def refuse_adc_policy(policy_class: object, algorithm: str) -> None:
     """
     Raise ``TypeError`` if ``policy_class`` is ADC's policy: for the TD3-family baselines, whose ``load`` of an ADC
@@ -477,24 +290,21 @@ class ADCPolicy(ActorAverageTD3Policy):
     and in the critic trunk, 100 intervals, a value stream of 20 units) is
     ``dict(net_arch=dict(pi=[30], qf=[30]), n_intervals=100, value_net_arch=[20])``.
 
+    The other parameters (``net_arch``: the actor's and the critic trunk's hidden layers, a list for both or
+    ``dict(pi=[...], qf=[...])``; ``activation_fn``, ``features_extractor_class``, ``features_extractor_kwargs``,
+    ``normalize_images``, ``share_features_extractor``, ``actor_average_tau``), by name or the first five by position,
+    are those of :class:`~sb3_adc.common.actor_average.ActorAverageTD3Policy`, with its defaults.
+
     :param observation_space: Observation space
     :param action_space: Action space (a bounded ``Box``)
     :param lr_schedule: Learning rate schedule (could be constant); ADC sets the critic optimizer's rate
         from its own ``critic_learning_rate``
-    :param net_arch: The actor's hidden layers and the critic trunk's hidden layers: a list for both, or
-        ``dict(pi=[...], qf=[...])``
-    :param activation_fn: Activation function
-    :param features_extractor_class: Features extractor to use.
-    :param features_extractor_kwargs: Keyword arguments to pass to the features extractor.
-    :param normalize_images: Whether to normalize images or not, dividing by 255.0 (True by default)
     :param optimizer_class: The optimizer to use, ``th.optim.Adam`` by default
     :param optimizer_kwargs: Additional keyword arguments, excluding the learning rate, to pass to the optimizer;
         with Adam or AdamW and neither ``fused`` nor ``foreach`` given, ``fused=True`` is added (one kernel for all
         parameter tensors instead of SB3's per-tensor loop on the CPU, the same update up to float rounding; see
         :mod:`sb3_adc.common.fast_update`; ADC's ``fast_update=False`` trains with SB3's loop whatever this says)
     :param n_critics: Number of dueling critic networks (1 in the paper)
-    :param share_features_extractor: Whether to share or not the features extractor between the actor and
-        the critic (this saves computation time)
     :param n_intervals: Number of uniform intervals per action dimension (for ``"legendre"``, the centres of its
         nearly-zero baseline, and the grid that ADC's ``target_greedy_mix`` and ``actor_greedy_weight`` search)
     :param value_net_arch: Hidden layer sizes of the value stream
@@ -505,13 +315,6 @@ class ADCPolicy(ActorAverageTD3Policy):
         critic), ``"state_value"``, ``"legendre"`` (the default: a polynomial advantage in the action, on which
         ``n_intervals`` has almost no effect) or ``"action_network"`` (see :class:`DuelingIntervalCritic`)
     :param basis_degree: Degree of the advantage polynomial of ``critic_design="legendre"``
-    :param actor_average_tau: Not in the paper: with a value in ``(0, 1)``, the policy keeps ``actor_average``, a
-        Polyak average of the actor's iterates (after the ``n``-th actor update, ``average <- (1 - t) average +
-        t actor`` with ``t = max(actor_average_tau, 1 / n)``: their plain mean for the first
-        ``1 / actor_average_tau`` updates, an exponential moving average after). Deterministic predictions (the
-        deployed policy: evaluation, ``EvalCallback``) use the average; ``predict(deterministic=False)`` and the
-        exploration during training use the actor itself, so the average does not change what is learned.
-        0 (default): no average
     """
 
     critic: DuelingIntervalCritic  # type: ignore[assignment]
@@ -522,15 +325,10 @@ class ADCPolicy(ActorAverageTD3Policy):
         observation_space: spaces.Space,
         action_space: spaces.Box,
         lr_schedule: Schedule,
-        net_arch: list[int] | dict[str, list[int]] | None = None,
-        activation_fn: type[nn.Module] = nn.ReLU,
-        features_extractor_class: type[BaseFeaturesExtractor] = FlattenExtractor,
-        features_extractor_kwargs: dict[str, Any] | None = None,
-        normalize_images: bool = True,
+        *args: Any,
         optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
         optimizer_kwargs: dict[str, Any] | None = None,
         n_critics: int = 1,
-        share_features_extractor: bool = False,
         n_intervals: int = 100,
         value_net_arch: list[int] | None = None,
         advantage_net_arch: list[int] | None = None,
@@ -538,7 +336,7 @@ class ADCPolicy(ActorAverageTD3Policy):
         advantage_interpolation: Interpolation = "none",
         critic_design: CriticDesign = DEFAULT_CRITIC_DESIGN,
         basis_degree: int = DEFAULT_BASIS_DEGREE,
-        actor_average_tau: float = 0.0,
+        **kwargs: Any,
     ):
         # TD3Policy.__init__ builds the networks (through ``make_critic``), so the dueling options must be
         # in place before it runs.
@@ -551,22 +349,10 @@ class ADCPolicy(ActorAverageTD3Policy):
             "critic_design": critic_design,
             "basis_degree": basis_degree,
         }
-        super().__init__(
-            observation_space,
-            action_space,
-            lr_schedule,
-            net_arch=net_arch,
-            activation_fn=activation_fn,
-            features_extractor_class=features_extractor_class,
-            features_extractor_kwargs=features_extractor_kwargs,
-            normalize_images=normalize_images,
-            optimizer_class=optimizer_class,
-            # A default of the fast update path, which the caller's explicit `fused` or `foreach` overrides.
-            optimizer_kwargs=fast_optimizer_kwargs(optimizer_class, optimizer_kwargs),
-            n_critics=n_critics,
-            share_features_extractor=share_features_extractor,
-            actor_average_tau=actor_average_tau,
-        )
+        # A default of the fast update path, which the caller's explicit `fused` or `foreach` overrides.
+        optimizer_kwargs = fast_optimizer_kwargs(optimizer_class, optimizer_kwargs)
+        kwargs.update(optimizer_class=optimizer_class, optimizer_kwargs=optimizer_kwargs, n_critics=n_critics)
+        super().__init__(observation_space, action_space, lr_schedule, *args, **kwargs)
 
     @property
     def n_intervals(self) -> int:
@@ -592,19 +378,8 @@ class CnnPolicy(ADCPolicy):
     extractor by default. Parameters as :class:`ADCPolicy`.
     """
 
-    def __init__(
-        self,
-        observation_space: spaces.Space,
-        action_space: spaces.Box,
-        lr_schedule: Schedule,
-        net_arch: list[int] | dict[str, list[int]] | None = None,
-        activation_fn: type[nn.Module] = nn.ReLU,
-        features_extractor_class: type[BaseFeaturesExtractor] = NatureCNN,
-        **kwargs: Any,
-    ):
-        super().__init__(
-            observation_space, action_space, lr_schedule, net_arch, activation_fn, features_extractor_class, **kwargs
-        )
+    def __init__(self, *args: Any, features_extractor_class: type[BaseFeaturesExtractor] = NatureCNN, **kwargs: Any):
+        super().__init__(*args, features_extractor_class=features_extractor_class, **kwargs)
 
 
 class MultiInputPolicy(ADCPolicy):
@@ -613,16 +388,5 @@ class MultiInputPolicy(ADCPolicy):
     features extractor by default. Parameters as :class:`ADCPolicy`.
     """
 
-    def __init__(
-        self,
-        observation_space: spaces.Space,
-        action_space: spaces.Box,
-        lr_schedule: Schedule,
-        net_arch: list[int] | dict[str, list[int]] | None = None,
-        activation_fn: type[nn.Module] = nn.ReLU,
-        features_extractor_class: type[BaseFeaturesExtractor] = CombinedExtractor,
-        **kwargs: Any,
-    ):
-        super().__init__(
-            observation_space, action_space, lr_schedule, net_arch, activation_fn, features_extractor_class, **kwargs
-        )
+    def __init__(self, *args: Any, features_extractor_class: type[BaseFeaturesExtractor] = CombinedExtractor, **kwargs: Any):
+        super().__init__(*args, features_extractor_class=features_extractor_class, **kwargs)

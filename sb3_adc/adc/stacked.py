@@ -26,7 +26,7 @@ import torch as th
 from torch import nn
 from torch.nn import functional as F
 
-from sb3_adc.adc.designs import LegendreAdvantageNetwork
+from sb3_adc.adc.legendre import LegendreAdvantageNetwork
 from sb3_adc.adc.policies import DuelingIntervalCritic
 
 #: One layer of a stacked MLP: a linear layer's (weight, bias) indices into the stacked tensors, or an activation.
@@ -168,7 +168,7 @@ class StackedCritics:
     def q_values(self, obs: th.Tensor, actions: th.Tensor) -> th.Tensor:
         """
         ``Q_i(s, a)`` of every network, as the critic's ``forward`` computes them one by one
-        (:meth:`~sb3_adc.adc.designs.LegendreAdvantageNetwork.q_value` with mean aggregation).
+        (:meth:`~sb3_adc.adc.legendre.LegendreAdvantageNetwork.q_value` with mean aggregation).
 
         :param obs: Observations
         :param actions: Scaled actions ``(batch, action_dim)``

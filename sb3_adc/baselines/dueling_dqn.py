@@ -7,7 +7,7 @@ from typing import Any
 import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.policies import BasePolicy
-from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, FlattenExtractor, create_mlp
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, create_mlp
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from stable_baselines3.dqn.policies import DQNPolicy, QNetwork
 from torch import nn
@@ -97,16 +97,14 @@ class DuelingDQNPolicy(DQNPolicy):
     Section 5.1.1) is ``dict(net_arch=[30], advantage_net_arch=[100], value_net_arch=[20])`` on
     :class:`~sb3_adc_envs.wrappers.DiscretizedActions` with ``n_actions=25``.
 
+    The other parameters (``activation_fn``, ``features_extractor_class``, ``features_extractor_kwargs``,
+    ``normalize_images``, ``optimizer_class``, ``optimizer_kwargs``), by position after ``net_arch`` or by name, are
+    those of SB3's :class:`~stable_baselines3.dqn.policies.DQNPolicy`, with its defaults.
+
     :param observation_space: Observation space
     :param action_space: Action space (``Discrete``)
     :param lr_schedule: Learning rate schedule (could be constant)
     :param net_arch: Hidden layer sizes of the shared trunk (default ``[64]``)
-    :param activation_fn: Activation function
-    :param features_extractor_class: Features extractor to use.
-    :param features_extractor_kwargs: Keyword arguments to pass to the features extractor.
-    :param normalize_images: Whether to normalize images or not, dividing by 255.0 (True by default)
-    :param optimizer_class: The optimizer to use, ``th.optim.Adam`` by default
-    :param optimizer_kwargs: Additional keyword arguments, excluding the learning rate, to pass to the optimizer
     :param value_net_arch: Hidden layer sizes of the value stream (default ``[64]``)
     :param advantage_net_arch: Hidden layer sizes of the advantage stream (default ``[64]``)
     """
@@ -120,14 +118,10 @@ class DuelingDQNPolicy(DQNPolicy):
         action_space: spaces.Discrete,
         lr_schedule: Schedule,
         net_arch: list[int] | None = None,
-        activation_fn: type[nn.Module] = nn.ReLU,
-        features_extractor_class: type[BaseFeaturesExtractor] = FlattenExtractor,
-        features_extractor_kwargs: dict[str, Any] | None = None,
-        normalize_images: bool = True,
-        optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
-        optimizer_kwargs: dict[str, Any] | None = None,
+        *args: Any,
         value_net_arch: list[int] | None = None,
         advantage_net_arch: list[int] | None = None,
+        **kwargs: Any,
     ) -> None:
         if not isinstance(action_space, spaces.Discrete):
             raise TypeError(
@@ -139,18 +133,8 @@ class DuelingDQNPolicy(DQNPolicy):
             "value_net_arch": [64] if value_net_arch is None else list(value_net_arch),
             "advantage_net_arch": [64] if advantage_net_arch is None else list(advantage_net_arch),
         }
-        super().__init__(
-            observation_space,
-            action_space,
-            lr_schedule,
-            net_arch=[64] if net_arch is None else list(net_arch),
-            activation_fn=activation_fn,
-            features_extractor_class=features_extractor_class,
-            features_extractor_kwargs=features_extractor_kwargs,
-            normalize_images=normalize_images,
-            optimizer_class=optimizer_class,
-            optimizer_kwargs=optimizer_kwargs,
-        )
+        net_arch = [64] if net_arch is None else list(net_arch)
+        super().__init__(observation_space, action_space, lr_schedule, net_arch, *args, **kwargs)
 
     def make_q_net(self) -> DuelingQNetwork:
         # Make sure we always have separate networks for features extractors etc

@@ -20,7 +20,7 @@ import warnings
 import zipfile
 import zlib
 from collections.abc import Iterator, Mapping
-from typing import Any, TypeVar
+from typing import Any, TypeAlias, TypeVar
 
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
@@ -28,6 +28,11 @@ from stable_baselines3.common.save_util import load_from_zip_file, recursive_get
 from stable_baselines3.common.type_aliases import GymEnv, TensorDict
 
 from sb3_adc.common.safe_load import UnsafeModelFileError, safe_objects
+
+#: A model file: its path, or a file-like.
+ModelPath: TypeAlias = str | pathlib.Path | io.BufferedIOBase
+#: What :meth:`CheckedModelFiles._load_arguments` returns: the ``custom_objects`` and keyword arguments for SB3's ``load``.
+LoadArguments: TypeAlias = tuple[dict[str, Any] | None, dict[str, Any]]
 
 #: What SB3 (from 2.8) warns in ``_setup_model`` when an off-policy model with ``n_steps > 1`` is given its
 #: ``replay_buffer_class``. A loaded model always is: the file holds the ``NStepReplayBuffer`` and the ``n_steps``
@@ -118,7 +123,7 @@ def model_file_error(message: str, catchable_as: type[Exception] = ValueError) -
         return ModelFileError(message)
 
 
-def _describe(path: str | pathlib.Path | io.BufferedIOBase) -> str:
+def _describe(path: ModelPath) -> str:
     return str(path) if isinstance(path, (str, os.PathLike)) else repr(path)
 
 
@@ -136,7 +141,7 @@ def missing_model_file(path: str | os.PathLike[str], algorithm: str) -> FileNotF
 
 
 @contextlib.contextmanager
-def model_file_errors(path: str | pathlib.Path | io.BufferedIOBase, algorithm: str) -> Iterator[None]:
+def model_file_errors(path: ModelPath, algorithm: str) -> Iterator[None]:
     """
     Turn the errors of loading ``path`` into a :class:`ModelFileError` (or a ``FileNotFoundError``) whose
     message names the file, catchable as the error SB3 raises.
@@ -242,12 +247,8 @@ class CheckedModelFiles(BaseAlgorithm):
 
     @classmethod
     def _load_arguments(
-        cls,
-        path: str | pathlib.Path | io.BufferedIOBase,
-        env: GymEnv | None,
-        custom_objects: dict[str, Any] | None,
-        kwargs: dict[str, Any],
-    ) -> tuple[dict[str, Any] | None, dict[str, Any]]:
+        cls, path: ModelPath, env: GymEnv | None, custom_objects: dict[str, Any] | None, kwargs: dict[str, Any]
+    ) -> LoadArguments:
         """
         The ``custom_objects`` and keyword arguments :meth:`load` passes to SB3's (unchanged here). Subclasses check
         ``env`` and read ``path`` here, inside the error handling of :meth:`load`.
@@ -262,7 +263,7 @@ class CheckedModelFiles(BaseAlgorithm):
     @classmethod
     def load(
         cls: type[SelfCheckedModelFiles],
-        path: str | pathlib.Path | io.BufferedIOBase,
+        path: ModelPath,
         env: GymEnv | None = None,
         device: th.device | str = "auto",
         custom_objects: dict[str, Any] | None = None,

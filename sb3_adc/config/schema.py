@@ -16,9 +16,14 @@ from gymnasium import spaces
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
-from sb3_adc.adc.adc import check_actor_greedy_weight, check_fast_update, check_target_greedy_mix
-from sb3_adc.adc.exploration import check_interval_exploration, check_interval_temperature
 from sb3_adc.adc.intervals import AGGREGATIONS, INTERPOLATIONS, check_n_intervals
+from sb3_adc.adc.options import (
+    check_actor_greedy_weight,
+    check_fast_update,
+    check_interval_exploration,
+    check_interval_temperature,
+    check_target_greedy_mix,
+)
 from sb3_adc.adc.policies import CRITIC_DESIGNS
 from sb3_adc.common.actor_average import ActorAverageTD3Policy, check_actor_average_tau
 from sb3_adc.config import validators as v

@@ -11,7 +11,8 @@ from stable_baselines3.td3.policies import TD3Policy
 from torch import nn
 
 from sb3_adc import ADC
-from sb3_adc.adc.designs import MONOMIAL_MAX_DEGREE, LegendreAdvantageNetwork, legendre_basis, legendre_monomial_matrix
+from sb3_adc.adc.designs import NetworkSpec
+from sb3_adc.adc.legendre import MONOMIAL_MAX_DEGREE, LegendreAdvantageNetwork, legendre_basis, legendre_monomial_matrix
 from sb3_adc.adc.policies import CRITIC_DESIGNS, DEFAULT_BASIS_DEGREE, ADCPolicy, validate_critic_options
 from sb3_adc.config import HyperparamsError, resolve_entry
 
@@ -122,7 +123,7 @@ def test_legendre_fused_heads_draw_the_initial_critic_of_two_separate_heads():
     # One layer holds the value head's row, then the coefficient head's, drawn in that order as two separate
     # layers would be: a seed gives the same initial critic either way.
     th.manual_seed(0)
-    network = LegendreAdvantageNetwork(3, 2, 10, [16], [], [], nn.ReLU, basis_degree=4)
+    network = LegendreAdvantageNetwork(NetworkSpec(3, 2, 10, [16], [], [], nn.ReLU, "mean", basis_degree=4))
     th.manual_seed(0)
     trunk = nn.Sequential(*create_mlp(3, -1, [16], nn.ReLU))
     value_head, coefficient_head = nn.Linear(16, 1), nn.Linear(16, 2 * 4)

@@ -12,7 +12,7 @@ import pytest
 import torch as th
 
 from sb3_adc import ADC
-from sb3_adc.adc.adc import check_fast_update
+from sb3_adc.adc.options import check_fast_update
 
 #: The ``-v1`` lidar entries' update settings (hyperparams/adc.yml), scaled down: twin critics, 3-step returns,
 #: policy delay, target smoothing and an averaged actor.
