@@ -11,8 +11,10 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from sb3_adc_envs.lidar_course.course import MAX_COURSE_SIDE, Course, load_course
+from sb3_adc_envs.lidar_course.course import MAX_COURSE_SIDE, Course
+from sb3_adc_envs.lidar_course.course_parsing import load_course
 from sb3_adc_envs.lidar_course.geometry import LoopProgress
+from sb3_adc_envs.lidar_course.lidar import reading_directions
 from sb3_adc_envs.lidar_course.procedural import CourseGenerator
 from sb3_adc_envs.lidar_course.rendering import TopDownRenderer
 from sb3_adc_envs.lidar_course.simulation import ROBOTS, CourseSimulation
@@ -33,7 +35,6 @@ MAX_N_RAYS = 4096
 MAX_RAYS_PER_READING = 16
 # Initial capacity of the path buffer (positions); it doubles when full.
 _PATH_CAPACITY = 512
-_TWO_PI = 2.0 * math.pi
 
 
 @functools.lru_cache(maxsize=256)
@@ -238,44 +239,24 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         self.render_mode = render_mode
         #: ``"kinematic"`` or ``"wheeled"``.
         self.robot = robot
-        self._kinematic = robot == "kinematic"
 
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
         self.observation_space = spaces.Box(0.0, 1.0, shape=(self.n_rays,), dtype=np.float32)
         #: Ray directions relative to the heading [rad].
-        self.ray_angles, sector = self._lidar_geometry(self.n_rays, self.fov)
+        self.ray_angles, sector = reading_directions(self.n_rays, self.fov)
         #: Rays cast for each reading.
         self.rays_per_reading = int(rays_per_reading)
         self._simulation = CourseSimulation(
-            self.course,
-            self.robot_radius,
-            self.ray_angles,
-            self.max_range,
-            robot,
-            rays_per_reading=self.rays_per_reading,
-            sector=sector,
+            self.course, self.robot_radius, self.ray_angles, self.max_range, robot, self.rays_per_reading, sector
         )
         self._renderer: TopDownRenderer | None = None
         self._progress = self._loop_progress(self.course)
 
         self._lidar = np.ones(self.n_rays, dtype=np.float32)
-        start = self.course.start
-        self._x, self._y, self._heading = start.x, start.y, start.heading
         self._collided = False
         self._distance = 0.0
         self._path = np.empty((_PATH_CAPACITY, 2))
         self._path_length = 0
-
-    @staticmethod
-    def _lidar_geometry(n_rays: int, fov: float) -> tuple[np.ndarray, float]:
-        # The readings' directions and the angle between neighbouring readings (the sector each reading's rays
-        # cover; the whole field of view for one reading).
-        if math.isclose(fov, 2.0 * math.pi):
-            sector = 2.0 * math.pi / n_rays
-            return np.arange(n_rays) * sector, sector
-        if n_rays == 1:
-            return np.zeros(1), fov
-        return np.linspace(-fov / 2.0, fov / 2.0, n_rays), fov / (n_rays - 1)
 
     @staticmethod
     def _loop_progress(course: Course) -> LoopProgress | None:
@@ -284,7 +265,7 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
     @property
     def pose(self) -> tuple[float, float, float]:
         """``(x, y, heading)`` of the robot [m, m, rad]."""
-        return self._x, self._y, self._heading
+        return self._simulation.pose
 
     @property
     def trajectory(self) -> np.ndarray:
@@ -334,7 +315,6 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
                 y += self.np_random.uniform(-self.start_position_jitter, self.start_position_jitter)
             if self.start_heading_jitter > 0.0:
                 heading += self.np_random.uniform(-self.start_heading_jitter, self.start_heading_jitter)
-        self._x, self._y, self._heading = x, y, heading
         self._collided = self._simulation.move_robot(x, y, heading, self._lidar)
         if self._collided:
             raise ValueError(
@@ -380,25 +360,16 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
         :raises ValueError: if the action is NaN
         """
         steer = float(action[0])
-        if steer > 1.0:
-            steer = 1.0
-        elif steer < -1.0:
-            steer = -1.0
-        elif steer != steer:  # NaN
+        if steer != steer:  # NaN
             raise ValueError(f"`action` must not be NaN, got {action!r}.")
-        if self._kinematic:
-            heading = math.remainder(self._heading + steer * self.max_steer, _TWO_PI)
-            x = self._x + self.speed * math.cos(heading)
-            y = self._y + self.speed * math.sin(heading)
-            self._x, self._y, self._heading = x, y, heading
-            collided = self._simulation.move_robot(x, y, heading, self._lidar)
-            advance = self.speed
-        else:
-            x, y, heading, collided = self._simulation.drive_robot(self.speed, steer * self.max_steer, self._lidar)
-            advance = math.hypot(x - self._x, y - self._y)
-            self._x, self._y, self._heading = x, y, heading
+        steer = 1.0 if steer > 1.0 else -1.0 if steer < -1.0 else steer
+        x_before, y_before, _ = self._simulation.pose
+        x, y, _, collided = self._simulation.drive_robot(self.speed, steer * self.max_steer, self._lidar)
         self._collided = collided
-        self._distance += self._progress.advance(x, y) if self._progress is not None else advance
+        if self._progress is not None:
+            self._distance += self._progress.advance(x, y)
+        else:  # the length of the path: the kinematic robot drives `speed` exactly
+            self._distance += self.speed if self.robot == "kinematic" else math.hypot(x - x_before, y - y_before)
         self._record_position()
         reward = self.collision_reward if collided else self.step_reward
         return self._lidar.copy(), reward, collided, False, self._info(collided)
@@ -406,8 +377,7 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
     def _record_position(self) -> None:
         if self._path_length == len(self._path):
             self._path = np.concatenate([self._path, np.empty_like(self._path)])
-        self._path[self._path_length, 0] = self._x
-        self._path[self._path_length, 1] = self._y
+        self._path[self._path_length] = self._simulation.pose[:2]
         self._path_length += 1
 
     def render(self) -> np.ndarray | None:
@@ -417,17 +387,9 @@ class LidarObstacleCourseEnv(gym.Env[np.ndarray, np.ndarray]):
             return None
         if self._renderer is None:
             self._renderer = TopDownRenderer(self.course)
-        cos_heading, sin_heading = math.cos(self._heading), math.sin(self._heading)
-        rotation = np.array([[cos_heading, sin_heading], [-sin_heading, cos_heading]])
-        ray_ends = np.array([self._x, self._y]) + self._lidar[:, None] * (self._simulation.ray_vectors @ rotation)
-        return self._renderer.render(
-            self.trajectory,
-            self.pose,
-            self.robot_radius,
-            ray_ends,
-            self._lidar < 1.0,
-            self._collided,
-        )
+        pose = self.pose
+        ray_ends = self._simulation.lidar.ray_ends(*pose, self._lidar)
+        return self._renderer.render(self.trajectory, pose, self.robot_radius, ray_ends, self._lidar < 1.0, self._collided)
 
     def close(self) -> None:
         """Disconnect the pybullet client (safe to call more than once)."""

@@ -26,6 +26,16 @@ def polyline_segments(points: np.ndarray, closed: bool) -> np.ndarray:
     return np.hstack([starts, ends])
 
 
+def segment_lengths(segments: np.ndarray) -> np.ndarray:
+    """
+    Lengths of segments.
+
+    :param segments: ``(n, 4)`` segments
+    :return: ``(n,)`` lengths
+    """
+    return np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
+
+
 def round_corners(points: np.ndarray, radius: float) -> np.ndarray:
     """
     Replace every corner of a closed polyline by a circular arc of the given radius.
@@ -242,7 +252,7 @@ class LoopProgress:
         segments = polyline_segments(loop, closed=True)
         self._segment_array = segments
         self._segments = [tuple(row) for row in segments.tolist()]
-        lengths = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
+        lengths = segment_lengths(segments)
         self._lengths = lengths.tolist()
         self._arc = np.concatenate([[0.0], np.cumsum(lengths)[:-1]]).tolist()
         #: Length of the loop [m].

@@ -23,9 +23,15 @@ from typing import Any
 
 import numpy as np
 
-from sb3_adc_envs.lidar_course import course as course_module
 from sb3_adc_envs.lidar_course import geometry
-from sb3_adc_envs.lidar_course.course import Corridor, Course, CourseError, StartPose, with_obstacles
+from sb3_adc_envs.lidar_course.course import MAX_CENTERLINE_POINTS, MAX_COORDINATE, Corridor, Course, CourseError, StartPose
+from sb3_adc_envs.lidar_course.course_checks import (
+    check_corridor_does_not_overlap,
+    check_extent,
+    check_walls,
+    corridor_walls,
+)
+from sb3_adc_envs.lidar_course.course_parsing import with_obstacles
 
 #: Draws of a corridor before giving up (a draw is redrawn when the corridor overlaps itself).
 _MAX_SHAPE_DRAWS = 200
@@ -146,8 +152,7 @@ class CourseGenerator:
                 continue  # an edge too short for its arcs
             # Start in the middle of the longest straight, so the loop begins with the centre line's order.
             segments = geometry.polyline_segments(centerline, closed=True)
-            lengths = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
-            longest = int(np.argmax(lengths))
+            longest = int(np.argmax(geometry.segment_lengths(segments)))
             middle = (segments[longest, :2] + segments[longest, 2:]) / 2.0
             centerline = np.vstack([middle, np.roll(centerline, -(longest + 1), axis=0)])
             heading = math.degrees(
@@ -226,16 +231,16 @@ class CourseGenerator:
 
 def corridor_course(data: dict[str, Any], source: str) -> Course:
     """
-    The course :func:`~sb3_adc_envs.lidar_course.course.course_from_dict` builds from a generator's draw, faster.
+    The course :func:`~sb3_adc_envs.lidar_course.course_parsing.course_from_dict` builds from a generator's draw, faster.
 
     ``data`` holds what :meth:`CourseGenerator._corridor` draws: ``name``, ``description``, ``wall_thickness``,
     ``corridor`` (``width`` and ``centerline``, no ``corner_radius``) and ``start``, from NumPy's floats. The
     same checks, on the same numbers: a draw is refused exactly when ``course_from_dict`` refuses it, and an
     accepted one gives the same course, bit for bit (``tests/envs/test_lidar_procedural_fast.py`` compares the two
-    over many draws). What makes it fast: the numbers are checked as arrays rather than one by one, the walls are
-    offset once rather than twice, and the check that the corridor does not overlap itself measures only the
-    distances that can fail it (:func:`~sb3_adc_envs.lidar_course.geometry.nearest_segment_distances`), about a
-    tenth of the samples-times-walls distances of ``course_from_dict``, the most of its time.
+    over many draws). What makes it fast: the numbers are checked as arrays rather than one by one, and the check
+    that the corridor does not overlap itself measures only the distances that can fail it
+    (:func:`~sb3_adc_envs.lidar_course.geometry.nearest_segment_distances`), about a tenth of the
+    samples-times-walls distances of ``course_from_dict``, the most of its time.
 
     :param data: A draw, as above
     :param source: Name of the course in error messages
@@ -248,40 +253,27 @@ def corridor_course(data: dict[str, Any], source: str) -> Course:
     numbers = np.concatenate(
         [centerline.ravel(), [wall_thickness, width, start_data["x"], start_data["y"], start_data["heading_deg"]]]
     )
-    if not (np.all(np.isfinite(numbers)) and np.all(np.abs(numbers) <= course_module.MAX_COORDINATE)):
+    if not (np.all(np.isfinite(numbers)) and np.all(np.abs(numbers) <= MAX_COORDINATE)):
         raise CourseError(source, "<numbers>", "a number is not finite or out of range")
     if wall_thickness <= 0.0 or width <= 0.0:
         raise CourseError(source, "corridor.width", "sizes must be > 0")
     start = StartPose(
         x=float(start_data["x"]), y=float(start_data["y"]), heading=math.radians(float(start_data["heading_deg"]))
     )
-    # As _parse_corridor: the centre line's points, extent and closure, then the overlap check.
-    if len(centerline) > course_module.MAX_CENTERLINE_POINTS or len(centerline) < 3:
+    # As course_from_dict's corridor: the centre line's points, extent and closure, then the overlap check.
+    if len(centerline) > MAX_CENTERLINE_POINTS or len(centerline) < 3:
         raise CourseError(source, "corridor.centerline", "too many or too few points")
     if np.any(np.hypot(*np.diff(centerline, axis=0).T) <= 1e-9):
         raise CourseError(source, "corridor.centerline", "a point repeats the point before it")
-    course_module._check_extent(
-        source, "corridor", centerline[:, 0], centerline[:, 1], width / 2.0 + wall_thickness, "the corridor's walls"
-    )
+    check_extent(source, "corridor", centerline[:, 0], centerline[:, 1], width / 2.0 + wall_thickness, "the corridor's walls")
     if np.allclose(centerline[0], centerline[-1]):
         centerline = centerline[:-1]
     if len(centerline) < 3:
         raise CourseError(source, "corridor.centerline", "a closed corridor needs at least 3 distinct points")
     corridor = Corridor(centerline=centerline, width=width)
-    walls = np.vstack(course_module._corridor_walls(corridor, wall_thickness))
-    _check_corridor_does_not_overlap(source, corridor, walls, wall_thickness)
-    # As course_from_dict: the walls' number and extent, and the start inside the corridor.
-    if len(walls) > course_module.MAX_WALL_SEGMENTS:
-        raise CourseError(source, "walls", "too many wall segments")
-    half = wall_thickness / 2.0
-    course_module._check_extent(
-        source, "<extent>", walls[:, [0, 2]].ravel(), walls[:, [1, 3]].ravel(), half, "the course's walls"
-    )
-    _, distance = geometry.closest_segment(
-        np.array([start.x, start.y]), geometry.polyline_segments(corridor.centerline, closed=True)
-    )
-    if distance > corridor.width / 2.0:
-        raise CourseError(source, "start", "the start position is outside the corridor")
+    walls = np.vstack(corridor_walls(corridor, wall_thickness))
+    check_corridor_does_not_overlap(source, corridor, walls, wall_thickness, nearest_only=True)
+    check_walls(source, walls, wall_thickness, corridor, [], start)
     return Course(
         name=str(data["name"]),
         source=source,
@@ -292,21 +284,3 @@ def corridor_course(data: dict[str, Any], source: str) -> Course:
         description=str(data["description"]),
         obstacles=(),
     )
-
-
-def _check_corridor_does_not_overlap(source: str, corridor: Corridor, walls: np.ndarray, wall_thickness: float) -> None:
-    # course._check_corridor_does_not_overlap's test, on the distances that can fail it: a sample fails when its
-    # nearest wall face is closer than `required`, so walls further than that (plus the wall's half thickness,
-    # and a margin for the rounding of the subtraction) cannot change the outcome.
-    required = corridor.width / 2.0 * (1.0 - course_module._OVERLAP_TOLERANCE)
-    segments = geometry.polyline_segments(corridor.centerline, closed=True)
-    lengths = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
-    n_samples = int(np.maximum(np.ceil(lengths / course_module._OVERLAP_CHECK_SPACING), 1).sum())
-    if n_samples * len(walls) > course_module.MAX_OVERLAP_CHECK_DISTANCES:
-        raise CourseError(source, "corridor.centerline", "too many distances for the overlap check")
-    samples = geometry.sample_polyline(corridor.centerline, course_module._OVERLAP_CHECK_SPACING, closed=True)
-    reach = (required + wall_thickness / 2.0) * (1.0 + 1e-6) + 1e-9
-    clearances = geometry.nearest_segment_distances(samples, walls, reach)
-    clearances -= wall_thickness / 2.0
-    if clearances.min() < required:
-        raise CourseError(source, "corridor.centerline", "the corridor overlaps itself or turns too sharply")

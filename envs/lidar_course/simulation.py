@@ -14,6 +14,7 @@ with requires_extra("envs", "the lidar obstacle course"):
     import pybullet
 
 from sb3_adc_envs.lidar_course.course import Course
+from sb3_adc_envs.lidar_course.lidar import Lidar
 from sb3_adc_envs.lidar_course.wheeled import WheeledRobot
 
 #: Height of the walls [m].
@@ -33,14 +34,11 @@ ROBOTS = ("kinematic", "wheeled")
 # body's mask. Rays see walls and obstacles only, never the robot.
 # - The course's world is never stepped: walls (and obstacles) are in group 1, the group pybullet gives the links of
 #   a multibody (which spares a call per link at every reset), and the robot's mask is the walls' group.
-# - The wheeled robot's world (ground and robot, no walls) is stepped: the ground and the robot's wheels and
-#   casters collide with each other only, and the robot's body with nothing: its contact with a wall is the
-#   geometric test of `_touches_wall` in the course's world, as for the kinematic robot (the episode ends
-#   there, so no wall ever needs to push it).
+# - The wheeled robot's world (ground and robot, no walls; :meth:`WheeledRobot.build_world`) is stepped: the robot's
+#   body collides with nothing there, and its contact with a wall is the geometric test of `_touches_wall` in the
+#   course's world, as for the kinematic robot (the episode ends there, so no wall ever needs to push it).
 _WALL_GROUP = 1
 _ROBOT_GROUP = 2
-_GROUND_GROUP = 4
-_WHEEL_GROUP = 8
 #: Walls and obstacles per multibody: the most links a ``createMultiBody`` call takes (pybullet 3.2 drops those
 #: beyond 127: ``MAX_CREATE_MULTI_BODY_LINKS``, 128 with the base).
 LINKS_PER_BODY = 127
@@ -50,18 +48,20 @@ RESET_WORLD_EVERY = 16
 _FAR = (1.0e4, 1.0e4, 0.0)
 _ORIGIN = (0.0, 0.0, 0.0)
 _IDENTITY = (0.0, 0.0, 0.0, 1.0)
+_TWO_PI = 2.0 * math.pi
 
 
 class CourseSimulation:
     """
     A pybullet physics client (``p.DIRECT``) holding one course (walls and obstacles) and one robot.
 
-    With ``robot="kinematic"`` the robot is a cylinder without dynamics: :meth:`move_robot` places it with
+    With ``robot="kinematic"`` the robot is a cylinder without dynamics: :meth:`drive_robot` turns it and drives it
+    straight (the pose changes exactly by the step), and :meth:`move_robot` places it with
     ``resetBasePositionAndOrientation``, asks pybullet whether it touches a wall (broad phase
     ``getOverlappingObjects`` on the robot's bounding box, then ``getClosestPoints`` against the walls and
-    obstacles found there) and casts the lidar's rays with one ``rayTestBatch``. Rays start at the robot's
-    centre and are filtered to the walls' collision group (obstacles are in it too), so they never hit the
-    robot. :meth:`load` replaces the course in the same client (see there how, and why it is fast).
+    obstacles found there) and casts the lidar's rays (:class:`~sb3_adc_envs.lidar_course.lidar.Lidar`). Rays
+    start at the robot's centre and are filtered to the walls' collision group (obstacles are in it too), so they
+    never hit the robot. :meth:`load` replaces the course in the same client (see there how, and why it is fast).
 
     With ``robot="wheeled"`` the robot is a :class:`~sb3_adc_envs.lidar_course.wheeled.WheeledRobot` whose
     wheels roll on the ground under gravity, in a second client that holds only the ground and the robot
@@ -72,10 +72,6 @@ class CourseSimulation:
 
     Every call passes this instance's ``physicsClientId``: several simulations run side by side in one
     process. :meth:`close` disconnects the clients; it is safe to call twice and runs on garbage collection.
-
-    With ``rays_per_reading`` above 1, each of the lidar's readings is the nearest hit of that many rays spread
-    evenly over its sector (``sector`` wide, centred on the reading's direction), all cast in the same
-    ``rayTestBatch``.
 
     :param course: The course to build
     :param robot_radius: Radius of the robot's cylinder [m]
@@ -107,25 +103,18 @@ class CourseSimulation:
         # The wheeled robot's stepped world, without walls: the step's cost does not grow with the course.
         self._physics_client: int | None = pybullet.connect(pybullet.DIRECT) if self.wheeled is not None else None
 
-        #: ``(n_rays, 2)`` vectors of the lidar's readings in the robot's frame (unit direction times ``max_range``).
-        self.ray_vectors = max_range * np.column_stack([np.cos(ray_angles), np.sin(ray_angles)])
-        self.rays_per_reading = int(rays_per_reading)
-        # The rays cast, reading after reading: each reading's rays at the middles of equal parts of its sector.
-        offsets = (np.arange(self.rays_per_reading) + 0.5) / self.rays_per_reading * sector - sector / 2.0
-        cast_angles = (np.asarray(ray_angles)[:, None] + offsets).ravel()  # one ray: offset 0, the reading's direction
-        self._cast_vectors = max_range * np.column_stack([np.cos(cast_angles), np.sin(cast_angles)])
-        n_rays = len(cast_angles)
-        self._ray_from = np.full((n_rays, 3), SENSOR_HEIGHT)
-        self._ray_to = np.full((n_rays, 3), SENSOR_HEIGHT)
-        self._rotation = np.empty((2, 2))
+        #: The robot's lidar.
+        self.lidar = Lidar(ray_angles, max_range, SENSOR_HEIGHT, _WALL_GROUP, rays_per_reading, sector)
         self._position = [0.0, 0.0, SENSOR_HEIGHT]
         self._orientation = [0.0, 0.0, 0.0, 1.0]
         self._aabb_min = [0.0, 0.0, ROBOT_GROUND_CLEARANCE]
         self._aabb_max = [0.0, 0.0, ROBOT_GROUND_CLEARANCE + ROBOT_HEIGHT]
-        self._hits: tuple[tuple[int, ...], ...] = ()
         self._part_offsets: dict[int, int] = {}
         self.robot_id = -1
         self._courses_since_reset = 0
+        #: ``(x, y, heading)`` of the robot [m, m, rad], where the last :meth:`load`, :meth:`move_robot` or
+        #: :meth:`drive_robot` left it.
+        self.pose = (course.start.x, course.start.y, course.start.heading)
         self.load(course)
 
     def load(self, course: Course) -> None:
@@ -189,8 +178,10 @@ class CourseSimulation:
         self.wall_ids = list(range(len(course.walls)))
         self.obstacle_ids = list(range(len(course.walls), len(shapes)))
         start = course.start
+        self.pose = (start.x, start.y, start.heading)
         if self.wheeled is not None:
-            self._build_wheeled_world()
+            assert self._physics_client is not None
+            self.wheeled.build_world(self._physics_client)
             self.wheeled.place(start.x, start.y, start.heading)
             self._follow_wheeled()
         else:
@@ -246,24 +237,6 @@ class CourseSimulation:
             orientations.append([0.0, 0.0, math.sin(obstacle.yaw / 2.0), math.cos(obstacle.yaw / 2.0)])
         return shapes, positions, orientations
 
-    def _build_wheeled_world(self) -> None:
-        # The stepped world of the wheeled robot: the ground and the robot, anew.
-        client, wheeled = self._physics_client, self.wheeled
-        assert client is not None
-        assert wheeled is not None
-        pybullet.resetSimulation(physicsClientId=client)
-        ground = pybullet.createMultiBody(
-            baseMass=0.0,
-            baseCollisionShapeIndex=pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client),
-            physicsClientId=client,
-        )
-        pybullet.setCollisionFilterGroupMask(ground, -1, _GROUND_GROUP, _WHEEL_GROUP, physicsClientId=client)
-        wheeled.configure_world(client)
-        robot = wheeled.build(client)
-        pybullet.setCollisionFilterGroupMask(robot, -1, _ROBOT_GROUP, 0, physicsClientId=client)
-        for link in wheeled.link_ids:
-            pybullet.setCollisionFilterGroupMask(robot, link, _WHEEL_GROUP, _GROUND_GROUP, physicsClientId=client)
-
     def _follow_wheeled(self) -> None:
         # The robot's cylinder in the course's world takes the wheeled robot's body's pose, tilt included.
         assert self.wheeled is not None
@@ -286,6 +259,7 @@ class CourseSimulation:
             (1 where a ray hits nothing)
         :return: whether the robot overlaps a wall
         """
+        self.pose = (x, y, heading)
         if self.wheeled is not None:
             self.wheeled.place(x, y, heading)
             self._follow_wheeled()
@@ -301,48 +275,28 @@ class CourseSimulation:
 
     def drive_robot(self, advance: float, turn: float, lidar_out: np.ndarray) -> tuple[float, float, float, bool]:
         """
-        Drive the wheeled robot for one control period, read the lidar and tell whether the robot touches a wall.
+        Drive the robot for one step, read the lidar and tell whether the robot touches a wall: the kinematic robot
+        turns by ``turn``, then drives ``advance`` straight; the wheeled robot sets its wheels to make that turn and
+        that distance in one control period and simulates it.
 
-        :param advance: Forward distance the wheels are set to drive in the period [m]
-        :param turn: Change of heading they are set to make in the period [rad], positive to the left
+        :param advance: Forward distance of the step [m]
+        :param turn: Change of heading of the step [rad], positive to the left
         :param lidar_out: ``(n_rays,)`` array that receives the ray lengths divided by ``max_range``
-        :return: ``(x, y, heading, collided)``: the body's pose afterwards [m, m, rad], and whether it overlaps
-            a wall
-        :raises RuntimeError: with the kinematic robot (:meth:`move_robot` places it)
+        :return: ``(x, y, heading, collided)``: the pose afterwards [m, m, rad], and whether the robot overlaps a wall
         """
         if self.wheeled is None:
-            raise RuntimeError("drive_robot() drives the wheeled robot; place the kinematic robot with move_robot()")
+            x, y, heading = self.pose
+            heading = math.remainder(heading + turn, _TWO_PI)
+            x, y = x + advance * math.cos(heading), y + advance * math.sin(heading)
+            return x, y, heading, self.move_robot(x, y, heading, lidar_out)
         x, y, heading = self.wheeled.drive(advance, turn)
+        self.pose = (x, y, heading)
         self._follow_wheeled()
         return x, y, heading, self._sense(x, y, heading, lidar_out)
 
     def _sense(self, x: float, y: float, heading: float, lidar_out: np.ndarray) -> bool:
         # The lidar's rays from the robot's pose, and the contact test.
-        client = self._client
-        cos_heading = math.cos(heading)
-        sin_heading = math.sin(heading)
-        rotation = self._rotation
-        rotation[0, 0] = cos_heading
-        rotation[0, 1] = sin_heading
-        rotation[1, 0] = -sin_heading
-        rotation[1, 1] = cos_heading
-        ray_to = self._ray_to
-        np.matmul(self._cast_vectors, rotation, out=ray_to[:, :2])
-        ray_to[:, 0] += x
-        ray_to[:, 1] += y
-        ray_from = self._ray_from
-        ray_from[:, 0] = x
-        ray_from[:, 1] = y
-        hits = pybullet.rayTestBatch(ray_from, ray_to, collisionFilterMask=_WALL_GROUP, physicsClientId=client)
-        per_reading = self.rays_per_reading
-        if per_reading == 1:
-            for i, hit in enumerate(hits):
-                lidar_out[i] = hit[2]
-        else:
-            # Each reading: the nearest of its rays' hits (a ray that hits nothing has fraction 1).
-            for i in range(len(lidar_out)):
-                lidar_out[i] = min(hit[2] for hit in hits[i * per_reading : (i + 1) * per_reading])
-        self._hits = hits
+        self.lidar.read(self._client, x, y, heading, lidar_out)
         return self._touches_wall(x, y)
 
     @property
@@ -352,12 +306,8 @@ class CourseSimulation:
         :attr:`wall_ids` and :attr:`obstacle_ids`, or -1 for none): with several rays per reading, that of its
         nearest hit.
         """
-        per_reading = self.rays_per_reading
-        hits = self._hits
-        if per_reading > 1:
-            hits = tuple(min(hits[i : i + per_reading], key=lambda hit: hit[2]) for i in range(0, len(hits), per_reading))
         # The rays see the course's links only (body -1 where a ray hits nothing).
-        return [self._part_offsets[hit[0]] + hit[1] if hit[0] >= 0 else -1 for hit in hits]
+        return [self._part_offsets[hit[0]] + hit[1] if hit[0] >= 0 else -1 for hit in self.lidar.reading_hits()]
 
     def _touches_wall(self, x: float, y: float) -> bool:
         return next(self._touched_bodies(x, y), None) is not None

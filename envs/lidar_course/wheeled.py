@@ -38,6 +38,11 @@ MIN_RADIUS = 0.08
 #: Gravity along -z [m/s^2].
 GRAVITY = 9.81
 
+# Collision filter groups of the robot's stepped world (simulation.py explains pybullet's rule): the ground and the
+# robot's wheels and casters collide with each other only, and the robot's body with nothing.
+_BODY_GROUP = 2
+_GROUND_GROUP = 4
+_WHEEL_GROUP = 8
 # Link indices: the wheels are the robot's joints 0 and 1, the casters (fixed joints) 2 and 3.
 _WHEELS = (0, 1)
 _N_LINKS = 4
@@ -61,7 +66,7 @@ class WheeledRobot:
     more slowly. The robot accelerates from rest in about 3 control steps.
 
     The robot is built by :meth:`build` in a client whose world :meth:`configure_world` has set up (gravity
-    and the physics time step; call both again after ``resetSimulation``).
+    and the physics time step; call both again after ``resetSimulation``), or with its ground by :meth:`build_world`.
 
     :param radius: Radius of the body [m], at least :data:`MIN_RADIUS`
     :param body_height: Height of the body's cylinder [m]
@@ -105,6 +110,27 @@ class WheeledRobot:
             deterministicOverlappingPairs=1,
             physicsClientId=client,
         )
+
+    def build_world(self, client: int) -> None:
+        """
+        Empty a client's world (``resetSimulation``) and build the robot's stepped world there: the ground, the physics
+        settings (:meth:`configure_world`) and the robot (:meth:`build`), whose wheels and casters collide with the
+        ground only and whose body collides with nothing.
+
+        :param client: The physics client id
+        """
+        pybullet.resetSimulation(physicsClientId=client)
+        ground = pybullet.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client),
+            physicsClientId=client,
+        )
+        pybullet.setCollisionFilterGroupMask(ground, -1, _GROUND_GROUP, _WHEEL_GROUP, physicsClientId=client)
+        self.configure_world(client)
+        robot = self.build(client)
+        pybullet.setCollisionFilterGroupMask(robot, -1, _BODY_GROUP, 0, physicsClientId=client)
+        for link in self.link_ids:
+            pybullet.setCollisionFilterGroupMask(robot, link, _WHEEL_GROUP, _GROUND_GROUP, physicsClientId=client)
 
     def build(self, client: int) -> int:
         """

@@ -7,7 +7,7 @@ from typing import Any
 import pytest
 
 from sb3_adc_envs.lidar_course import Course
-from sb3_adc_envs.lidar_course.course import course_from_dict
+from sb3_adc_envs.lidar_course.course_parsing import course_from_dict
 
 #: Inner faces of the walls of :func:`box_course` (walls centred on 0 and `size`, 0.1 m thick).
 WALL_THICKNESS = 0.1

@@ -19,9 +19,8 @@ from sb3_adc_envs.lidar_course.course import (
     MAX_OVERLAP_CHECK_DISTANCES,
     MAX_WALL_POINTS,
     MAX_WALL_SEGMENTS,
-    course_from_dict,
-    with_obstacles,
 )
+from sb3_adc_envs.lidar_course.course_parsing import course_from_dict, with_obstacles
 from sb3_adc_envs.lidar_course.course_yaml import MAX_YAML_DEPTH, MAX_YAML_VALUES, flow_depth_exceeds
 from sb3_adc_envs.lidar_course.passability import GRID_RESOLUTION, MAX_GRID_CELLS, robot_fits
 from sb3_adc_envs.lidar_course.procedural import CourseGenerator

@@ -10,7 +10,8 @@ import pytest
 import yaml
 
 from sb3_adc_envs.lidar_course import CourseError, LidarObstacleCourseEnv, load_course, shipped_courses
-from sb3_adc_envs.lidar_course.course import COURSES_DIR, course_from_dict
+from sb3_adc_envs.lidar_course.course import COURSES_DIR
+from sb3_adc_envs.lidar_course.course_parsing import course_from_dict
 
 UNSEEN = ("unseen_arena", "unseen_narrow", "unseen_wide", "unseen_zigzag")
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sb3_adc_envs.lidar_course import LidarObstacleCourseEnv
-from sb3_adc_envs.lidar_course.course import course_from_dict
+from sb3_adc_envs.lidar_course.course_parsing import course_from_dict
 
 SIZE = 10.0
 WALL_THICKNESS = 0.1  # of the `box_course` fixture

@@ -135,6 +135,17 @@ def make_env() -> gym.Env[np.ndarray, np.ndarray]:
     return gym.make("sb3_adc/LidarObstacleCourse-v1")
 
 
+def drawn_layout_seeds() -> list[int]:
+    """The layout seeds ``reset(seed=k)`` draws in a fresh environment, for each ``k`` of :data:`LAYOUT_SEEDS`."""
+    env = make_env()
+    drawn = []
+    for seed in LAYOUT_SEEDS:
+        env.reset(seed=seed)
+        drawn.append(int(env.unwrapped.layout_seed))  # type: ignore[attr-defined]
+    env.close()
+    return drawn
+
+
 def regenerate() -> None:
     """Write :data:`FIXTURE` from the environment as it is now, each seed in a fresh environment."""
     data: dict[str, Any] = {}
@@ -142,14 +153,7 @@ def regenerate() -> None:
         env = make_env()
         data[str(layout_seed)] = record_seed(env, layout_seed)
         env.close()
-    # The layout seeds reset(seed=k) draws in a fresh environment.
-    env = make_env()
-    drawn = []
-    for seed in LAYOUT_SEEDS:
-        env.reset(seed=seed)
-        drawn.append(int(env.unwrapped.layout_seed))  # type: ignore[attr-defined]
-    env.close()
-    data["drawn_layout_seeds"] = drawn
+    data["drawn_layout_seeds"] = drawn_layout_seeds()
     FIXTURE.parent.mkdir(parents=True, exist_ok=True)
     # One line per layout seed: small, and a diff names the seed.
     FIXTURE.write_text("{\n" + ",\n".join(f"{json.dumps(key)}: {json.dumps(value)}" for key, value in data.items()) + "\n}\n")
@@ -178,13 +182,7 @@ def test_a_fresh_environment_builds_the_pinned_layout(expected: dict[str, Any], 
 
 
 def test_reset_draws_the_pinned_layout_seeds(expected: dict[str, Any]) -> None:
-    env = make_env()
-    drawn = []
-    for seed in LAYOUT_SEEDS:
-        env.reset(seed=seed)
-        drawn.append(int(env.unwrapped.layout_seed))  # type: ignore[attr-defined]
-    env.close()
-    assert drawn == expected["drawn_layout_seeds"]
+    assert drawn_layout_seeds() == expected["drawn_layout_seeds"]
 
 
 def test_consecutive_resets_give_what_fresh_environments_give(expected: dict[str, Any]) -> None:

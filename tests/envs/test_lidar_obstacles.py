@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from sb3_adc_envs.lidar_course import CourseError, LidarObstacleCourseEnv, load_course, shipped_courses
-from sb3_adc_envs.lidar_course.course import course_from_dict
+from sb3_adc_envs.lidar_course.course_parsing import course_from_dict
 from sb3_adc_envs.lidar_course.passability import kinematic_reach
 
 OBSTACLE_COURSES = ("unseen_posts", "unseen_slalom", "unseen_stubs")

@@ -1,7 +1,7 @@
 """The fast paths of procedural layouts give what the plain ones give, bit for bit.
 
 :func:`~sb3_adc_envs.lidar_course.procedural.corridor_course` builds a generator's draw as
-:func:`~sb3_adc_envs.lidar_course.course.course_from_dict` does (refusing the same draws), and
+:func:`~sb3_adc_envs.lidar_course.course_parsing.course_from_dict` does (refusing the same draws), and
 :func:`~sb3_adc_envs.lidar_course.geometry.nearest_segment_distances` measures only the pairs within reach, with
 the numbers of :func:`~sb3_adc_envs.lidar_course.geometry.point_segment_distances`.
 """
@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from sb3_adc_envs.lidar_course import geometry, procedural
-from sb3_adc_envs.lidar_course.course import Course, CourseError, course_from_dict
+from sb3_adc_envs.lidar_course.course import Course, CourseError
+from sb3_adc_envs.lidar_course.course_parsing import course_from_dict
 from sb3_adc_envs.lidar_course.env import TEST_LAYOUT_SEEDS, TRAIN_LAYOUT_SEEDS, VALIDATION_LAYOUT_SEEDS
 from sb3_adc_envs.lidar_course.procedural import CourseGenerator
 
