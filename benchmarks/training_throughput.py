@@ -54,8 +54,8 @@ from sb3_adc.adc.policies import CRITIC_DESIGNS, DEFAULT_BASIS_DEGREE, DEFAULT_C
 
 RESULTS_DIR = Path(__file__).parent / "results"
 
-#: The timed models: SB3's DDPG, then ADC with each critic design.
-MODELS = ["DDPG", *CRITIC_DESIGNS]
+#: The settings of every timed model, with its batch (also ``learning_starts``), ``gamma`` and ``seed``.
+COMMON: dict[str, Any] = dict(learning_rate=1e-3, buffer_size=100_000, tau=0.01, train_freq=1, gradient_steps=1, device="cpu")
 #: ``"action_network"`` evaluates its advantage network at every interval centre, so its cost grows with
 #: ``n_intervals``; it is timed with the 16 intervals it is used with in the critic study
 #: (``benchmarks/experiments/critic_design_screen.yml``, configuration ``adc_action_network``).
@@ -81,18 +81,7 @@ SETTINGS = [
 
 
 def make_model(model: str, setting: Setting, env_id: str, seed: int) -> BaseAlgorithm:
-    common: dict[str, Any] = dict(
-        learning_rate=1e-3,
-        buffer_size=100_000,
-        learning_starts=setting.batch_size,
-        batch_size=setting.batch_size,
-        tau=0.01,
-        gamma=0.99,
-        train_freq=1,
-        gradient_steps=1,
-        seed=seed,
-        device="cpu",
-    )
+    common = dict(COMMON, learning_starts=setting.batch_size, batch_size=setting.batch_size, gamma=0.99, seed=seed)
     env = gym.make(env_id)
     if model == "DDPG":
         return DDPG("MlpPolicy", env, policy_kwargs=dict(net_arch=setting.net_arch), **common)
@@ -127,19 +116,7 @@ FAST_SETTINGS = [
 
 def make_fast_model(model: str, setting: FastSetting, env_id: str, seed: int) -> BaseAlgorithm:
     """A model of ``--fast-update``: the ``-v1`` entries' update settings (see the module's docstring)."""
-    common: dict[str, Any] = dict(
-        learning_rate=1e-3,
-        buffer_size=100_000,
-        learning_starts=setting.batch_size,
-        batch_size=setting.batch_size,
-        tau=0.01,
-        gamma=0.98,
-        train_freq=1,
-        gradient_steps=1,
-        n_steps=3,
-        seed=seed,
-        device="cpu",
-    )
+    common = dict(COMMON, learning_starts=setting.batch_size, batch_size=setting.batch_size, gamma=0.98, n_steps=3, seed=seed)
     env = gym.make(env_id)
     critic_layers = [*setting.critic_arch, *setting.head_arch]
     baseline_arch = dict(pi=setting.actor_arch, qf=critic_layers)
@@ -147,66 +124,47 @@ def make_fast_model(model: str, setting: FastSetting, env_id: str, seed: int) ->
         return TD3("MlpPolicy", env, policy_kwargs=dict(net_arch=baseline_arch), **common)
     if model == "DDPG":
         return DDPG("MlpPolicy", env, policy_kwargs=dict(net_arch=baseline_arch), **common)
-    policy_kwargs = dict(
-        net_arch=dict(pi=setting.actor_arch, qf=setting.critic_arch),
-        value_net_arch=setting.head_arch,
-        advantage_net_arch=setting.head_arch,
-        n_critics=2,
-        n_intervals=100,
-        actor_average_tau=1e-4,
-    )
-    return ADC(
-        "MlpPolicy",
-        env,
-        critic_learning_rate=1e-3,
-        policy_delay=2,
-        target_policy_noise=0.2,
-        target_noise_clip=0.5,
-        fast_update=model == "ADC fast",
-        policy_kwargs=policy_kwargs,
-        **common,
-    )
+    heads = dict(value_net_arch=setting.head_arch, advantage_net_arch=setting.head_arch, actor_average_tau=1e-4)
+    policy_kwargs = dict(net_arch=dict(pi=setting.actor_arch, qf=setting.critic_arch), n_critics=2, n_intervals=100, **heads)
+    update: dict[str, Any] = dict(critic_learning_rate=1e-3, policy_delay=2, target_policy_noise=0.2, target_noise_clip=0.5)
+    return ADC("MlpPolicy", env, fast_update=model == "ADC fast", policy_kwargs=policy_kwargs, **update, **common)
 
 
 CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.process_time}
+#: A model's maker: (model, setting, env id, seed) -> the model.
+Maker = Callable[[str, Any, str, int], BaseAlgorithm]
 
 
-def time_training(make: Callable[[], BaseAlgorithm], steps: int, warmup: int, clock: Callable[[], float]) -> float:
+def time_training(make: Callable[[], BaseAlgorithm], args: argparse.Namespace) -> float:
     """
-    Steps per second of ``learn(steps)`` after ``warmup`` steps (which fill the buffer past ``learning_starts``).
+    Steps per second of ``learn(args.steps)`` after ``args.warmup`` steps (which fill the buffer past
+    ``learning_starts``), on ``args.clock``.
 
     SB3's ``learn`` itself, not the experiment engine: what is timed is the algorithm's own cost, without the
     engine's evaluations, checkpoints and monitor files.
     """
-    model = make()
-    model.learn(warmup)
+    model, clock = make(), CLOCKS[args.clock]
+    model.learn(args.warmup)
     start = clock()
-    model.learn(steps, reset_num_timesteps=False)
-    return steps / (clock() - start)
+    model.learn(args.steps, reset_num_timesteps=False)
+    return args.steps / (clock() - start)
 
 
 def run(
-    env_id: str,
-    steps: int,
-    warmup: int,
-    repeats: int,
-    clock: Callable[[], float],
-    models: list[str],
-    settings: Sequence[Any],
-    make: Callable[[str, Any, str, int], BaseAlgorithm] = make_model,
-    baseline: str = "DDPG",
+    args: argparse.Namespace, models: list[str], settings: Sequence[Any], make: Maker, baseline: str
 ) -> list[dict[str, Any]]:
     """
-    Time ``models`` at each setting, in a rotating order: per model the median steps/s, the repeats, and the ratio
-    of medians to ``baseline`` (``{model}_over_{baseline}``, spaces in names as ``_``).
+    Time ``models`` at each setting (``args``: ``env``, ``steps``, ``warmup``, ``repeats``, ``clock``), in a rotating
+    order: per model the median steps/s, the repeats, and the ratio of medians to ``baseline``
+    (``{model}_over_{baseline}``, spaces in names as ``_``).
     """
     rows = []
     for setting in settings:
         timings: dict[str, list[float]] = {model: [] for model in models}
-        for repeat in range(repeats):
+        for repeat in range(args.repeats):
             shift = repeat % len(models)
             for model in models[shift:] + models[:shift]:
-                speed = time_training(partial(make, model, setting, env_id, repeat), steps, warmup, clock)
+                speed = time_training(partial(make, model, setting, args.env, repeat), args)
                 timings[model].append(speed)
                 print(f"  {setting.name:<58} {model:<15} repeat {repeat}: {speed:8.1f} steps/s", flush=True)
         reference = statistics.median(timings[baseline])
@@ -236,14 +194,36 @@ def fast_cells(rows: list[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
     return header, body
 
 
-def fast_table(rows: list[dict[str, Any]]) -> str:
-    """The ``--fast-update`` table in Markdown (printed, and written to ``training_throughput_fast.md``)."""
-    header, body = fast_cells(rows)
+def _label(model: str) -> str:
+    return "SB3 DDPG" if model == "DDPG" else f"ADC {model}" + (" (default)" if model == DEFAULT_CRITIC_DESIGN else "")
+
+
+def cells(rows: list[dict[str, Any]], models: list[str]) -> tuple[list[str], list[list[str]]]:
+    """The table's header and rows: DDPG's median steps/s, then each design's (and its ratio to DDPG's)."""
+    designs = [model for model in models if model != "DDPG"]
+    header = ["setting", "SB3 DDPG steps/s", *(f"{_label(d)} steps/s (/ DDPG)" for d in designs)]
+    body = []
+    for r in rows:
+        ratios = [f"{r[f'{d}_steps_per_s']:.0f} ({r[f'{d}_over_ddpg']:.2f})" for d in designs]
+        body.append([r["setting"], f"{r['DDPG_steps_per_s']:.0f}", *ratios])
+    return header, body
+
+
+def print_table(header: list[str], body: list[list[str]]) -> str:
+    """Print the table in Markdown, and return it."""
     lines = ["| " + " | ".join(header) + " |", "|---|" + "---:|" * (len(header) - 1)]
-    lines += ["| " + " | ".join(cells) + " |" for cells in body]
+    lines += ["| " + " | ".join(row) + " |" for row in body]
     table = "\n".join(lines)
     print(table)
     return table
+
+
+def write_csv(header: list[str], body: list[list[str]], path: Path) -> None:
+    """Write the table as CSV."""
+    with path.open("w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(header)
+        writer.writerows(body)
 
 
 def write_fast(result: dict[str, Any], output: Path) -> None:
@@ -255,42 +235,9 @@ def write_fast(result: dict[str, Any], output: Path) -> None:
         f"{result['clock']} clock, torch {result['versions']['torch']}; median steps/s [min-max] (ratio of medians to "
         "SB3 TD3).\n"
     )
-    (output / f"{stem}.md").write_text(fast_table(result["rows"]) + "\n" + note)
     header, body = fast_cells(result["rows"])
-    with (output / f"{stem}.csv").open("w", newline="") as file:
-        writer = csv.writer(file)
-        writer.writerow(header)
-        writer.writerows(body)
-
-
-def _label(model: str) -> str:
-    if model == "DDPG":
-        return "SB3 DDPG"
-    return f"ADC {model}" + (" (default)" if model == DEFAULT_CRITIC_DESIGN else "")
-
-
-def print_table(rows: list[dict[str, Any]], models: list[str]) -> str:
-    designs = [model for model in models if model != "DDPG"]
-    lines = [
-        "| setting | SB3 DDPG steps/s | " + " | ".join(f"{_label(d)} steps/s (/ DDPG)" for d in designs) + " |",
-        "|---|" + "---:|" * (1 + len(designs)),
-    ]
-    for r in rows:
-        cells = [f"{r[f'{d}_steps_per_s']:.0f} ({r[f'{d}_over_ddpg']:.2f})" for d in designs]
-        lines.append(f"| {r['setting']} | {r['DDPG_steps_per_s']:.0f} | " + " | ".join(cells) + " |")
-    table = "\n".join(lines)
-    print(table)
-    return table
-
-
-def write_csv(rows: list[dict[str, Any]], models: list[str], path: Path) -> None:
-    designs = [model for model in models if model != "DDPG"]
-    with path.open("w", newline="") as file:
-        writer = csv.writer(file)
-        writer.writerow(["setting", "SB3 DDPG steps/s"] + [f"{_label(d)} steps/s (/ DDPG)" for d in designs])
-        for r in rows:
-            cells = [f"{r[f'{d}_steps_per_s']:.0f} ({r[f'{d}_over_ddpg']:.2f})" for d in designs]
-            writer.writerow([r["setting"], f"{r['DDPG_steps_per_s']:.0f}", *cells])
+    (output / f"{stem}.md").write_text(print_table(header, body) + "\n" + note)
+    write_csv(header, body, output / f"{stem}.csv")
 
 
 def plot(rows: list[dict[str, Any]], models: list[str], path: Path) -> None:
@@ -311,16 +258,8 @@ def plot(rows: list[dict[str, Any]], models: list[str], path: Path) -> None:
         runs = [np.asarray(r[f"{model}_runs"], dtype=float) for r in rows]
         whiskers = np.array([medians - [run.min() for run in runs], [run.max() for run in runs] - medians])
         color = colors[index % len(colors)]
-        ax.errorbar(
-            medians,
-            y + offset,
-            xerr=whiskers,
-            fmt="D",
-            color=color,
-            capsize=3,
-            markersize=4,
-            label=f"{_label(model)} (median, min-max)",
-        )
+        label = f"{_label(model)} (median, min-max)"
+        ax.errorbar(medians, y + offset, xerr=whiskers, fmt="D", color=color, capsize=3, markersize=4, label=label)
         for i, run in enumerate(runs):
             ax.plot(run, np.full(len(run), y[i] + offset), "o", color=color, markersize=2.5, alpha=0.5)
     for i, r in enumerate(rows):
@@ -385,18 +324,15 @@ def main() -> None:
     parser.add_argument("--output", type=Path, default=RESULTS_DIR, help="results folder (default: benchmarks/results)")
     args = parser.parse_args()
 
-    if args.fast_update:
-        if args.replot:
-            write_fast(json.loads((args.output / "training_throughput_fast.json").read_text()), args.output)
-            return
-        main_fast(args)
+    if args.fast_update and args.replot:
+        write_fast(json.loads((args.output / "training_throughput_fast.json").read_text()), args.output)
         return
     stem = "training_throughput_intervals" if args.n_intervals else "training_throughput"
     if args.replot:
         saved = json.loads((args.output / f"{stem}.json").read_text())
         plot(saved["rows"], ["DDPG", *saved["designs"]], args.output / f"{stem}.png")
         return
-    settings = SETTINGS
+    settings: Sequence[Any] = SETTINGS
     if args.n_intervals:
         for n in args.n_intervals:
             try:
@@ -406,69 +342,57 @@ def main() -> None:
         base = SETTINGS[-1]
         settings = [replace(base, name=f"{base.name}, {n} intervals", n_intervals=n) for n in args.n_intervals]
     th.set_num_threads(args.threads)
-    steps, warmup, repeats = (300, 300, 1) if args.quick else (args.steps, args.warmup, args.repeats)
-    print(f"Training throughput on {args.env}: {steps} timed steps after {warmup}, {repeats} repeats, {args.clock} clock")
+    if args.quick:
+        args.steps, args.warmup, args.repeats = 300, 300, 1
+    timing = f"{args.steps} timed steps after {args.warmup}, {args.repeats} repeats, {args.clock} clock"
+    if args.fast_update:
+        print(f"Fast update on {args.env}: {timing}")
+        settings = FAST_SETTINGS[:1] if args.quick else FAST_SETTINGS
+        rows = run(args, FAST_MODELS, settings, make_fast_model, "TD3")
+        if args.quick:
+            print_table(*fast_cells(rows))
+            return
+        write_fast(_record("training_throughput --fast-update", args, rows, models=FAST_MODELS), args.output)
+        print(f"wrote {args.output}/training_throughput_fast.{{json,md,csv}}")
+        return
+    print(f"Training throughput on {args.env}: {timing}")
     models = ["DDPG", *args.designs]
     settings = settings[-1:] if args.quick else settings
-    rows = run(args.env, steps, warmup, repeats, CLOCKS[args.clock], models, settings)
-    table = print_table(rows, models)
+    rows = run(args, models, settings, make_model, "DDPG")
+    header, body = cells(rows, models)
+    table = print_table(header, body)
     if args.quick:
         return
-    args.output.mkdir(parents=True, exist_ok=True)
-    result = dict(
-        benchmark="training_throughput",
-        env=args.env,
-        timed_steps=steps,
-        warmup_steps=warmup,
-        repeats=repeats,
-        torch_threads=args.threads,
-        clock=args.clock,
-        action_network_intervals=ACTION_NETWORK_INTERVALS,
-        designs=args.designs,
-        default_critic_design=DEFAULT_CRITIC_DESIGN,
-        machine=dict(
-            processor=platform.processor() or platform.machine(), cpu_count=os.cpu_count(), python=platform.python_version()
-        ),
-        versions=dict(sb3_adc=sb3_adc.__version__, stable_baselines3=stable_baselines3.__version__, torch=th.__version__),
-        rows=rows,
-    )
-    (args.output / f"{stem}.json").write_text(json.dumps(result, indent=2) + "\n")
+    extra = dict(action_network_intervals=ACTION_NETWORK_INTERVALS, designs=args.designs)
+    _record("training_throughput", args, rows, stem, **extra, default_critic_design=DEFAULT_CRITIC_DESIGN)
     (args.output / f"{stem}.md").write_text(table + "\n")
-    write_csv(rows, models, args.output / f"{stem}.csv")
+    write_csv(header, body, args.output / f"{stem}.csv")
     plot(rows, models, args.output / f"{stem}.png")
     print(f"wrote {args.output}/{stem}.{{json,md,csv,png}}")
 
 
-def main_fast(args: argparse.Namespace) -> None:
-    """The ``--fast-update`` mode: time, print the table, write ``training_throughput_fast.{json,md,csv}``."""
-    th.set_num_threads(args.threads)
-    steps, warmup, repeats = (300, 300, 1) if args.quick else (args.steps, args.warmup, args.repeats)
-    print(f"Fast update on {args.env}: {steps} timed steps after {warmup}, {repeats} repeats, {args.clock} clock")
-    settings = FAST_SETTINGS[:1] if args.quick else FAST_SETTINGS
-    rows = run(args.env, steps, warmup, repeats, CLOCKS[args.clock], FAST_MODELS, settings, make_fast_model, "TD3")
-    if args.quick:
-        fast_table(rows)
-        return
-    stem = "training_throughput_fast"
-    args.output.mkdir(parents=True, exist_ok=True)
+def _record(
+    benchmark: str, args: argparse.Namespace, rows: list[Any], stem: str = "training_throughput_fast", **settings: Any
+) -> Any:
+    """Write the results' JSON (``{stem}.json``: the settings, the machine, the versions and the rows); return it."""
     result = dict(
-        benchmark="training_throughput --fast-update",
+        benchmark=benchmark,
         env=args.env,
-        timed_steps=steps,
-        warmup_steps=warmup,
-        repeats=repeats,
+        timed_steps=args.steps,
+        warmup_steps=args.warmup,
+        repeats=args.repeats,
         torch_threads=args.threads,
         clock=args.clock,
-        models=FAST_MODELS,
+        **settings,
         machine=dict(
             processor=platform.processor() or platform.machine(), cpu_count=os.cpu_count(), python=platform.python_version()
         ),
         versions=dict(sb3_adc=sb3_adc.__version__, stable_baselines3=stable_baselines3.__version__, torch=th.__version__),
         rows=rows,
     )
+    args.output.mkdir(parents=True, exist_ok=True)
     (args.output / f"{stem}.json").write_text(json.dumps(result, indent=2) + "\n")
-    write_fast(result, args.output)
-    print(f"wrote {args.output}/{stem}.{{json,md,csv}}")
+    return result
 
 
 if __name__ == "__main__":

@@ -53,25 +53,11 @@ from sb3_adc.experiment.benchmark import (
     run_benchmarks,
 )
 from sb3_adc.experiment.layout import FolderLock
-from sb3_adc.experiment.test_sets import TestSet, TestSetError, read_test_sets
+from sb3_adc.experiment.test_sets import TestSet, TestSetError, is_int, read_test_sets, score_outcomes
 
 #: Keys of an experiment file and of one of its configurations.
-KEYS = (
-    "description",
-    "envs",
-    "seeds",
-    "n_timesteps",
-    "evaluation",
-    "configs",
-    "reference",
-    "threshold",
-    "bootstrap_reps",
-    "runs",
-    "results",
-    "figures",
-    "test_sets",
-    "diagnostics",
-)
+KEYS: tuple[str, ...] = ("description", "envs", "seeds", "n_timesteps", "evaluation", "configs", "reference", "threshold")
+KEYS += ("bootstrap_reps", "runs", "results", "figures", "test_sets", "diagnostics")
 CONFIG_KEYS = ("algo", "hyperparams", "overrides", "label", "reference")
 EVALUATION_KEYS = ("episodes", "final_episodes")
 DIAGNOSTICS_KEYS = ("every", "episodes")
@@ -176,13 +162,9 @@ class Experiment:
         if self.diagnostics is None:
             return {}
         every = TINY_TIMESTEPS // 2 if tiny else self.diagnostics["every"]
-        kwargs = {
-            "eval_env": self.envs[0],
-            "eval_freq": every,
-            "log_freq": every,
-            "n_eval_episodes": 1 if tiny else self.diagnostics["episodes"],
-            "save_path": os.path.join(folder, "diagnostics", "seed{seed}"),
-        }
+        episodes = 1 if tiny else self.diagnostics["episodes"]
+        kwargs = {"eval_env": self.envs[0], "eval_freq": every, "log_freq": every, "n_eval_episodes": episodes}
+        kwargs["save_path"] = os.path.join(folder, "diagnostics", "seed{seed}")
         return {"callback": {"sb3_adc.diagnostics.CriticDiagnosticsCallback": kwargs}}
 
     def references(self) -> dict[str, str | None]:
@@ -246,18 +228,14 @@ def _check_keys(data: Any, accepted: tuple[str, ...], path: str, where: str) -> 
     _require(not unknown, path, where, f"has unknown keys {unknown}; accepted: {', '.join(accepted)}")
 
 
-def _int(value: Any, low: int, high: int) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool) and low <= value <= high
-
-
 def _seeds(value: Any, path: str) -> list[int]:
     problem = f"must list 1 to {MAX_SEEDS} distinct seeds >= 0, or be {{start: int, stop: int}}"
     if isinstance(value, Mapping):
         _check_keys(value, ("start", "stop"), path, "seeds")
         start, stop = value.get("start", 0), value.get("stop", 0)
-        _require(_int(start, 0, 2**31) and _int(stop, start + 1, start + MAX_SEEDS), path, "seeds", problem)
+        _require(is_int(start, 0, 2**31) and is_int(stop, start + 1, start + MAX_SEEDS), path, "seeds", problem)
         value = list(range(start, stop))
-    _require(isinstance(value, list) and all(_int(seed, 0, 2**31) for seed in value), path, "seeds", problem)
+    _require(isinstance(value, list) and all(is_int(seed, 0, 2**31) for seed in value), path, "seeds", problem)
     _require(0 < len(value) <= MAX_SEEDS and len(set(value)) == len(value), path, "seeds", problem)
     return list(value)
 
@@ -302,12 +280,12 @@ def read_experiment(path: str) -> Experiment:
     _require(envs_ok, path, "envs", f"must list 1 to {MAX_ENVS} env ids")
     problem = f"must map 1 to {MAX_CONFIGS} names to configurations"
     _require(isinstance(configs, Mapping) and 0 < len(configs) <= MAX_CONFIGS, path, "configs", problem)
-    _require(n_timesteps is None or _int(n_timesteps, 1, 10**9), path, "n_timesteps", "must be in 1-1e9 or null")
+    _require(n_timesteps is None or is_int(n_timesteps, 1, 10**9), path, "n_timesteps", "must be in 1-1e9 or null")
     evaluation = data.get("evaluation") or {}
     _check_keys(evaluation, EVALUATION_KEYS, path, "evaluation")
     episodes, final_episodes = evaluation.get("episodes", 5), evaluation.get("final_episodes", 20)
     for key, value in (("episodes", episodes), ("final_episodes", final_episodes)):
-        _require(_int(value, 1, 1000), path, f"evaluation.{key}", "must be an integer in 1-1000")
+        _require(is_int(value, 1, 1000), path, f"evaluation.{key}", "must be an integer in 1-1000")
     reference, threshold = data.get("reference"), data.get("threshold")
     _require(reference is None or reference in configs, path, "reference", f"must be one of the configs {list(configs)}")
     for key, value in configs.items():
@@ -315,7 +293,7 @@ def read_experiment(path: str) -> Experiment:
         _require((value or {}).get("reference", reference) in (*configs, None), path, f"configs.{key}.reference", problem)
     _require(threshold is None or isinstance(threshold, int | float), path, "threshold", "must be a number")
     reps, description = data.get("bootstrap_reps", 5000), data.get("description", "")
-    _require(_int(reps, 100, 100_000), path, "bootstrap_reps", "must be an integer in 100-100000")
+    _require(is_int(reps, 100, 100_000), path, "bootstrap_reps", "must be an integer in 100-100000")
     _require(isinstance(description, str), path, "description", "must be a string")
     diagnostics = data.get("diagnostics")
     if diagnostics is not None:
@@ -323,7 +301,9 @@ def read_experiment(path: str) -> Experiment:
         _require(len(envs) == 1, path, "diagnostics", "needs exactly one env (its evaluation rollouts run on it)")
         diagnostics = {"every": diagnostics.get("every", 1000), "episodes": diagnostics.get("episodes", 5)}
         for key, value in diagnostics.items():
-            _require(_int(value, 1, 10**9 if key == "every" else 1000), path, f"diagnostics.{key}", "must be an integer >= 1")
+            _require(
+                is_int(value, 1, 10**9 if key == "every" else 1000), path, f"diagnostics.{key}", "must be an integer >= 1"
+            )
     try:
         test_sets = read_test_sets(data.get("test_sets"))
     except TestSetError as error:
@@ -384,26 +364,16 @@ def run_experiment(
         results = run_benchmarks(list(grids.values()), backend, workers, address, report)
         elapsed = time.perf_counter() - start
         outcomes = [outcome for result in results for outcome in result.outcomes]
-        from sb3_adc.experiment.summary import merge_tables, write_report
+        from sb3_adc.experiment.summary import merge_tables, write_diagnostics, write_report
 
         tables = {name: result.tables for name, result in zip(grids, results, strict=True)}
         output = os.path.join(scratch, "results") if scratch else experiment.results
         if any(outcome.final is not None for outcome in outcomes):
             merge_tables(tables, output)
             if experiment.test_sets:  # each finished run scored (tiny: on two layouts or one episode per test set)
-                from sb3_adc.experiment.test_sets import score
-
-                names = {os.path.normpath(grid.log_folder): name for name, grid in grids.items()}
-                finished = {
-                    (names[os.path.normpath(run.log_folder)], run.spec.env_id, run.spec.seed): run.spec.run_dir(run.log_folder)
-                    for run in outcomes
-                    if run.final is not None
-                }
                 test_sets = {name: test.tiny() if tiny else test for name, test in experiment.test_sets.items()}
-                score(finished, test_sets, output, workers or 1)
+                score_outcomes(outcomes, grids, test_sets, output, workers or 1)
             if experiment.diagnostics:
-                from sb3_adc.experiment.summary import write_diagnostics
-
                 write_diagnostics(experiment, runs or experiment.runs, output, None if tiny else experiment.figures)
             write_report(experiment, output, figures=None if tiny else experiment.figures, wall_time_s=elapsed)
     return outcomes

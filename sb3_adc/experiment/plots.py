@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -55,6 +57,8 @@ _METRIC_MARKERS = [
 VARIANCE_LABEL = "variance across runs (return²)"
 #: Size of one panel (inches).
 PANEL_WIDTH, PANEL_HEIGHT = 6.4, 4.0
+#: Font sizes of rliable's figures.
+_RLIABLE_FONTS = {"labelsize": "medium", "ticklabelsize": "small"}
 
 
 @dataclass
@@ -96,12 +100,41 @@ def _shared_limits(low: np.ndarray, high: np.ndarray, margin: float = 0.05) -> t
     return lowest - pad, highest + pad
 
 
-def _grid(n_panels: int, rows_per_panel: int = 1) -> tuple[Figure, list[Axes]]:
+def _grid(n_panels: int) -> tuple[Figure, list[Axes]]:
+    """A figure of ``n_panels`` panels, three to a row."""
     columns = min(n_panels, 3)
-    rows = math.ceil(n_panels / columns) * rows_per_panel
-    figure = Figure(figsize=(PANEL_WIDTH * columns, PANEL_HEIGHT * rows), layout="constrained")
-    axes = figure.subplots(rows, columns, squeeze=False)
-    return figure, list(axes.flat)
+    figure = Figure(figsize=(PANEL_WIDTH * columns, PANEL_HEIGHT * math.ceil(n_panels / columns)), layout="constrained")
+    return figure, list(figure.subplots(math.ceil(n_panels / columns), columns, squeeze=False).flat)
+
+
+def _save(figure: Figure, path: str, title: str, unused: Sequence[Axes] = ()) -> str:
+    """Hide the ``unused`` panels, title the figure and write it to ``path``; return ``path``."""
+    for ax in unused:
+        ax.set_visible(False)
+    figure.suptitle(title, fontsize="medium")
+    figure.savefig(path, dpi=120)
+    return path
+
+
+def _decorate(ax: Axes, title: str, xlabel: str, ylabel: str) -> None:
+    """Title and label a panel, with a light grid and a legend."""
+    ax.set(title=title, xlabel=xlabel, ylabel=ylabel)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+
+
+def _prepare(table: pd.DataFrame, output_dir: str, empty: str) -> tuple[PlotOutputs, Callable[..., str]]:
+    """Refuse an empty ``table`` (ValueError: ``empty``), create ``output_dir``: the outputs, and a name's path in it."""
+    if table.empty:
+        raise ValueError(empty)
+    os.makedirs(output_dir, exist_ok=True)
+    return PlotOutputs(), partial(os.path.join, output_dir)
+
+
+def _write_table(outputs: PlotOutputs, table: pd.DataFrame, path: str) -> None:
+    """Write ``table`` to the CSV file ``path``, listed in ``outputs``."""
+    table.to_csv(path, index=False)
+    outputs.tables.append(path)
 
 
 def _plot_mean_curves(curves: pd.DataFrame, path: str, x: str, xlabel: str, ylabel: str, title: str) -> str:
@@ -115,14 +148,8 @@ def _plot_mean_curves(curves: pd.DataFrame, path: str, x: str, xlabel: str, ylab
             runs = int(group["n_runs"].iloc[0])
             ax.plot(group[x], group["mean"], color=color, label=f"{display_name(str(algo))} ({runs} runs)")
             ax.fill_between(group[x], group["mean_ci_low"], group["mean_ci_high"], color=color, alpha=0.2)
-        ax.set(title=env, xlabel=xlabel, ylabel=ylabel)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize="small")
-    for ax in axes[len(envs) :]:
-        ax.set_visible(False)
-    figure.suptitle(title, fontsize="medium")
-    figure.savefig(path, dpi=120)
-    return path
+        _decorate(ax, env, xlabel, ylabel)
+    return _save(figure, path, title, axes[len(envs) :])
 
 
 def plot_learning_curves(curves: pd.DataFrame, path: str, title: str = "", ylabel: str = "evaluation return") -> str:
@@ -146,14 +173,9 @@ def plot_wallclock_curves(curves: pd.DataFrame, path: str) -> str:
     :param curves: The output of :func:`~sb3_adc.experiment.statistics.wallclock_curves`
     :param path: The PNG file
     """
-    return _plot_mean_curves(
-        curves,
-        path,
-        "wall_time_s",
-        "wall-clock time of training (s)",
-        "latest evaluation return",
-        "Mean evaluation return against wall-clock time (95% bootstrap CI)",
-    )
+    labels = ("wall-clock time of training (s)", "latest evaluation return")
+    title = "Mean evaluation return against wall-clock time (95% bootstrap CI)"
+    return _plot_mean_curves(curves, path, "wall_time_s", *labels, title)
 
 
 def plot_reward_variance(curves: pd.DataFrame, episodes: pd.DataFrame | None, path: str, window: int = 10) -> str:
@@ -181,29 +203,15 @@ def plot_reward_variance(curves: pd.DataFrame, episodes: pd.DataFrame | None, pa
             color = colors[str(algo)]
             ax.plot(group["timesteps"], group["variance"], color=color, label=display_name(str(algo)))
             ax.fill_between(group["timesteps"], group["variance_ci_low"], group["variance_ci_high"], color=color, alpha=0.2)
-        ax.set(title=f"{env}: evaluation returns", xlabel="timesteps", ylabel=VARIANCE_LABEL)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize="small")
+        _decorate(ax, f"{env}: evaluation returns", "timesteps", VARIANCE_LABEL)
         if rows == 2:
             assert per_episode is not None
             ax = axes[1, column]
             for algo, group in per_episode[per_episode["env"] == env].groupby("algo", sort=True):
-                ax.plot(
-                    group["episode"],
-                    group["variance_smoothed"],
-                    color=colors.get(str(algo), "k"),
-                    label=display_name(str(algo)),
-                )
-            ax.set(
-                title=f"{env}: training episodes",
-                xlabel=f"episode ({window}-episode moving average)",
-                ylabel=VARIANCE_LABEL,
-            )
-            ax.grid(alpha=0.3)
-            ax.legend(fontsize="small")
-    figure.suptitle("Across-run variance of the rewards (as the ADC paper's Figures 5 and 8)", fontsize="medium")
-    figure.savefig(path, dpi=120)
-    return path
+                label = display_name(str(algo))
+                ax.plot(group["episode"], group["variance_smoothed"], color=colors.get(str(algo), "k"), label=label)
+            _decorate(ax, f"{env}: training episodes", f"episode ({window}-episode moving average)", VARIANCE_LABEL)
+    return _save(figure, path, "Across-run variance of the rewards (as the ADC paper's Figures 5 and 8)")
 
 
 def plot_final_performance(performance: pd.DataFrame, path: str, quantity: str = "final return") -> str:
@@ -228,23 +236,14 @@ def plot_final_performance(performance: pd.DataFrame, path: str, quantity: str =
         for offset, metric, marker in ((-0.15, "iqm", "o"), (0.15, "mean", "s")):
             for position, row in zip(positions, table.itertuples(index=False), strict=True):
                 value, low, high = getattr(row, metric), getattr(row, f"{metric}_ci_low"), getattr(row, f"{metric}_ci_high")
-                ax.errorbar(
-                    value,
-                    position + offset,
-                    xerr=[[value - low], [high - value]],
-                    fmt=marker,
-                    color=colors[row.algo],
-                    capsize=3,
-                )
+                xerr = [[value - low], [high - value]]
+                ax.errorbar(value, position + offset, xerr=xerr, fmt=marker, color=colors[row.algo], capsize=3)
         ax.set_yticks(positions, [display_name(algo) for algo in table["algo"]])
         ax.set(title=env, xlabel=f"{quantity} (95% CI)", xlim=limits)
         ax.grid(alpha=0.3, axis="x")
         ax.legend(handles=_METRIC_MARKERS, fontsize="small")
-    for ax in axes[len(envs) :]:
-        ax.set_visible(False)
-    figure.suptitle(f"{quantity.capitalize()}: IQM (o) and mean (s), 95% stratified-bootstrap CIs", fontsize="medium")
-    figure.savefig(path, dpi=120)
-    return path
+    title = f"{quantity.capitalize()}: IQM (o) and mean (s), 95% stratified-bootstrap CIs"
+    return _save(figure, path, title, axes[len(envs) :])
 
 
 def plot_performance_profiles(profiles: pd.DataFrame, path: str) -> str:
@@ -275,17 +274,12 @@ def plot_performance_profiles(profiles: pd.DataFrame, path: str) -> str:
             colors=names,
             xlabel=r"final return $\tau$",
             ylabel=r"fraction of runs with return $> \tau$",
-            labelsize="medium",
-            ticklabelsize="small",
+            **_RLIABLE_FONTS,
             legend=True,
             legendsize="small",
         )
         ax.set_title(env)
-    for ax in axes[len(envs) :]:
-        ax.set_visible(False)
-    figure.suptitle("Performance profiles of the final returns (95% stratified-bootstrap CIs)", fontsize="medium")
-    figure.savefig(path, dpi=120)
-    return path
+    return _save(figure, path, "Performance profiles of the final returns (95% stratified-bootstrap CIs)", axes[len(envs) :])
 
 
 def plot_probability_of_improvement(improvement: pd.DataFrame, path: str) -> str:
@@ -318,8 +312,7 @@ def plot_probability_of_improvement(improvement: pd.DataFrame, path: str) -> str
         xlabel="P(X > Y): probability that a run of X (left) ends above a run of Y (right)",
         left_ylabel="",
         right_ylabel="",
-        labelsize="medium",
-        ticklabelsize="small",
+        **_RLIABLE_FONTS,
     )
     ax.axvline(0.5, color="grey", linestyle="--", linewidth=1)
     # A point estimate with a zero-width interval (P = 0 or 1 with few runs) stays visible.
@@ -327,12 +320,8 @@ def plot_probability_of_improvement(improvement: pd.DataFrame, path: str) -> str
     ax.set_xlim(0.0, 1.0)
     n_envs = sorted(set(improvement["n_envs"]))
     environments = "environment" if n_envs == [1] else "environments"
-    figure.suptitle(
-        f"Probability of improvement of the final returns, over {' or '.join(map(str, n_envs))} {environments} (95% CIs)",
-        fontsize="medium",
-    )
-    figure.savefig(path, dpi=120)
-    return path
+    over = f"over {' or '.join(map(str, n_envs))} {environments}"
+    return _save(figure, path, f"Probability of improvement of the final returns, {over} (95% CIs)")
 
 
 def plot_results(
@@ -361,26 +350,17 @@ def plot_results(
     :param seed: Seed of the bootstrap
     :param window: Episodes of the moving average of the per-episode variance
     """
-    if evaluations.empty:
-        raise ValueError("no evaluations to plot (is the evaluation CSV empty?).")
-    os.makedirs(output_dir, exist_ok=True)
-    outputs = PlotOutputs()
-
-    def out(name: str) -> str:
-        return os.path.join(output_dir, name)
-
+    outputs, out = _prepare(evaluations, output_dir, "no evaluations to plot (is the evaluation CSV empty?).")
     curves = learning_curves(evaluations, reps=reps, seed=seed)
-    curves.to_csv(out("curves.csv"), index=False)
-    outputs.tables.append(out("curves.csv"))
+    _write_table(outputs, curves, out("curves.csv"))
     finals = final if final is not None and not final.empty else last_evaluations(evaluations)
     performance = final_performance(finals, reps=reps, seed=seed)
-    performance.to_csv(out("final_performance.csv"), index=False)
+    _write_table(outputs, performance, out("final_performance.csv"))
     with open(out("final_performance.md"), "w", encoding="utf-8") as stream:
         stream.write(markdown_table(performance))
-    outputs.tables += [out("final_performance.csv"), out("final_performance.md")]
+    outputs.tables.append(out("final_performance.md"))
     if episodes is not None and not episodes.empty:
-        episode_variance(episodes, window).to_csv(out("episode_variance.csv"), index=False)
-        outputs.tables.append(out("episode_variance.csv"))
+        _write_table(outputs, episode_variance(episodes, window), out("episode_variance.csv"))
     outputs.figures.append(plot_learning_curves(curves, out("learning_curves.png")))
     outputs.figures.append(plot_reward_variance(curves, episodes, out("reward_variance.png"), window))
     outputs.figures.append(plot_final_performance(performance, out("final_performance.png")))
@@ -388,8 +368,7 @@ def plot_results(
         assert episodes is not None
         timed = wallclock_curves(evaluations, episodes, reps=reps, seed=seed)
         if not timed.empty:
-            timed.to_csv(out("wallclock_curves.csv"), index=False)
-            outputs.tables.append(out("wallclock_curves.csv"))
+            _write_table(outputs, timed, out("wallclock_curves.csv"))
             outputs.figures.append(plot_wallclock_curves(timed, out("wallclock_curves.png")))
     return outputs
 
@@ -406,21 +385,12 @@ def plot_comparisons(final: pd.DataFrame, output_dir: str, reps: int = 2000, see
     :param reps: Bootstrap replications
     :param seed: Seed of the bootstrap
     """
-    if final.empty:
-        raise ValueError("no final returns to compare (is the final CSV empty?).")
-    os.makedirs(output_dir, exist_ok=True)
-    outputs = PlotOutputs()
-
-    def out(name: str) -> str:
-        return os.path.join(output_dir, name)
-
+    outputs, out = _prepare(final, output_dir, "no final returns to compare (is the final CSV empty?).")
     profiles = performance_profiles(final, reps=reps, seed=seed)
-    profiles.to_csv(out("performance_profiles.csv"), index=False)
-    outputs.tables.append(out("performance_profiles.csv"))
+    _write_table(outputs, profiles, out("performance_profiles.csv"))
     outputs.figures.append(plot_performance_profiles(profiles, out("performance_profiles.png")))
     improvement = probability_of_improvement(final, reps=reps, seed=seed)
     if not improvement.empty:
-        improvement.to_csv(out("probability_of_improvement.csv"), index=False)
-        outputs.tables.append(out("probability_of_improvement.csv"))
+        _write_table(outputs, improvement, out("probability_of_improvement.csv"))
         outputs.figures.append(plot_probability_of_improvement(improvement, out("probability_of_improvement.png")))
     return outputs

@@ -13,6 +13,7 @@ import itertools
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from typing import Any
 
 import numpy as np
 
@@ -26,32 +27,16 @@ with requires_extra("experiment", "the benchmark statistics"):
 
 #: Coverage of the confidence intervals.
 CONFIDENCE = 0.95
+#: Columns of :func:`final_performance`: the IQM and the mean, each with its CI.
 FINAL_PERFORMANCE_COLUMNS = (
     "env",
     "algo",
     "n_runs",
-    "iqm",
-    "iqm_ci_low",
-    "iqm_ci_high",
-    "mean",
-    "mean_ci_low",
-    "mean_ci_high",
-)
-CURVE_COLUMNS = (
-    "env",
-    "algo",
-    "timesteps",
-    "n_runs",
-    "mean",
-    "mean_ci_low",
-    "mean_ci_high",
-    "iqm",
-    "variance",
-    "variance_ci_low",
-    "variance_ci_high",
+    *(f"{s}{end}" for s in ("iqm", "mean") for end in ("", "_ci_low", "_ci_high")),
 )
 WALLCLOCK_CURVE_COLUMNS = ("env", "algo", "wall_time_s", "n_runs", "mean", "mean_ci_low", "mean_ci_high", "iqm")
-
+#: Columns of :func:`learning_curves`: those of :func:`wallclock_curves` against timesteps, and the variance with its CI.
+CURVE_COLUMNS = ("env", "algo", "timesteps", *WALLCLOCK_CURVE_COLUMNS[3:], "variance", "variance_ci_low", "variance_ci_high")
 PERFORMANCE_PROFILE_COLUMNS = ("env", "algo", "n_runs", "tau", "fraction", "fraction_ci_low", "fraction_ci_high")
 IMPROVEMENT_COLUMNS = ("algo_x", "algo_y", "n_envs", "probability", "ci_low", "ci_high")
 
@@ -72,22 +57,50 @@ def _seeded_bootstrap(seed: int) -> Iterator[None]:
         np.random.set_state(global_state)  # noqa: NPY002
 
 
-def _bootstrap(
-    scores: np.ndarray, func: Callable[[np.ndarray], np.ndarray], reps: int, seed: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """Point estimates and 95% stratified-bootstrap intervals (rows: low, high) of ``func(scores)``."""
-    if scores.shape[0] < 2:
-        point = func(scores)
-        return point, np.stack([point, point])
+def interval_estimates(
+    data: dict[str, Any], func: Callable[..., Any], reps: int, seed: int
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """
+    rliable's point estimates and 95% stratified-bootstrap intervals, reproducible from ``seed``.
+
+    :param data: Name -> a ``(runs, ...)`` matrix of scores, or a tuple of them (the arguments of ``func``)
+    :param func: The statistic
+    :param reps: Bootstrap replications
+    :param seed: Seed of the bootstrap
+    :return: Name -> point estimate, and name -> interval (rows: low, high)
+    """
     with _seeded_bootstrap(seed):
-        points, intervals = rly.get_interval_estimates(
-            {"scores": scores},
-            func,
-            reps=reps,
-            confidence_interval_size=CONFIDENCE,
-            random_state=np.random.RandomState(seed),
+        return rly.get_interval_estimates(
+            data, func, reps=reps, confidence_interval_size=CONFIDENCE, random_state=np.random.RandomState(seed)
         )
+
+
+def iqm_and_mean(scores: np.ndarray) -> np.ndarray:
+    """rliable's IQM and mean of all the scores."""
+    return np.array([metrics.aggregate_iqm(scores), metrics.aggregate_mean(scores)])
+
+
+def _bootstrap(
+    scores: np.ndarray | tuple[np.ndarray, ...], func: Callable[..., np.ndarray], reps: int, seed: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Point estimates and 95% stratified-bootstrap intervals (rows: low, high) of ``func(*scores)``; none (the
+    point twice) for fewer than two runs. ``scores``: a ``(runs, ...)`` matrix, or a tuple of them."""
+    matrices = scores if isinstance(scores, tuple) else (scores,)
+    if min(matrix.shape[0] for matrix in matrices) < 2:
+        point = np.asarray(func(*matrices))
+        return point, np.stack([point, point])
+    points, intervals = interval_estimates({"scores": scores}, func, reps, seed)
     return np.asarray(points["scores"]), np.asarray(intervals["scores"])
+
+
+def _at_least_two(value: int, name: str) -> None:
+    if value < 2:
+        raise ValueError(f"{name} must be >= 2, got {value}")
+
+
+def _concat(frames: list[pd.DataFrame], columns: tuple[str, ...]) -> pd.DataFrame:
+    """The frames one below the other, in ``columns`` (without frames: an empty table of them)."""
+    return pd.concat(frames, ignore_index=True)[list(columns)] if frames else pd.DataFrame(columns=list(columns))
 
 
 def final_performance(final: pd.DataFrame, reps: int = 2000, seed: int = 0) -> pd.DataFrame:
@@ -103,22 +116,8 @@ def final_performance(final: pd.DataFrame, reps: int = 2000, seed: int = 0) -> p
     rows = []
     for (env, algo), group in final.groupby(["env", "algo"], sort=True):
         scores = group["mean_return"].to_numpy(dtype=np.float64).reshape(-1, 1)
-        point, interval = _bootstrap(
-            scores, lambda x: np.array([metrics.aggregate_iqm(x), metrics.aggregate_mean(x)]), reps, seed
-        )
-        rows.append(
-            {
-                "env": env,
-                "algo": algo,
-                "n_runs": scores.shape[0],
-                "iqm": point[0],
-                "iqm_ci_low": interval[0, 0],
-                "iqm_ci_high": interval[1, 0],
-                "mean": point[1],
-                "mean_ci_low": interval[0, 1],
-                "mean_ci_high": interval[1, 1],
-            }
-        )
+        point, interval = _bootstrap(scores, iqm_and_mean, reps, seed)
+        rows.append([env, algo, scores.shape[0], point[0], *interval[:, 0], point[1], *interval[:, 1]])
     return pd.DataFrame(rows, columns=list(FINAL_PERFORMANCE_COLUMNS))
 
 
@@ -152,6 +151,16 @@ def _curve_metrics(scores: np.ndarray) -> np.ndarray:
     return np.concatenate([per_run.mean(axis=0), trim_mean(per_run, 0.25, axis=0), variance])
 
 
+def _curve_columns(matrix: np.ndarray, reps: int, seed: int) -> dict[str, Any]:
+    """Across the runs (rows of ``matrix``) at each point: ``n_runs``, and the mean, IQM and variance with CIs."""
+    point, interval = _bootstrap(matrix[:, None, :], _curve_metrics, reps, seed)
+    columns: dict[str, Any] = {"n_runs": matrix.shape[0]}
+    for index, name in enumerate(("mean", "iqm", "variance")):  # the blocks of _curve_metrics
+        block = slice(index * matrix.shape[1], (index + 1) * matrix.shape[1])
+        columns |= {name: point[block], f"{name}_ci_low": interval[0, block], f"{name}_ci_high": interval[1, block]}
+    return columns
+
+
 def learning_curves(evaluations: pd.DataFrame, reps: int = 2000, seed: int = 0) -> pd.DataFrame:
     """
     Across runs, at each evaluation timestep: the mean return with its 95% stratified-bootstrap CI, the IQM,
@@ -167,30 +176,10 @@ def learning_curves(evaluations: pd.DataFrame, reps: int = 2000, seed: int = 0) 
     frames = []
     for (env, algo), group in evaluations.groupby(["env", "algo"], sort=True):
         steps, matrix = run_matrix(group, "timesteps", "mean_return")
-        if matrix.size == 0:
-            continue
-        n_points = len(steps)
-        point, interval = _bootstrap(matrix[:, None, :], _curve_metrics, reps, seed)
-        frames.append(
-            pd.DataFrame(
-                {
-                    "env": env,
-                    "algo": algo,
-                    "timesteps": steps.astype(np.int64),
-                    "n_runs": matrix.shape[0],
-                    "mean": point[:n_points],
-                    "mean_ci_low": interval[0, :n_points],
-                    "mean_ci_high": interval[1, :n_points],
-                    "iqm": point[n_points : 2 * n_points],
-                    "variance": point[2 * n_points :],
-                    "variance_ci_low": interval[0, 2 * n_points :],
-                    "variance_ci_high": interval[1, 2 * n_points :],
-                }
-            )
-        )
-    if not frames:
-        return pd.DataFrame(columns=list(CURVE_COLUMNS))
-    return pd.concat(frames, ignore_index=True)[list(CURVE_COLUMNS)]
+        if matrix.size:
+            columns = _curve_columns(matrix, reps, seed)
+            frames.append(pd.DataFrame({"env": env, "algo": algo, "timesteps": steps.astype(np.int64), **columns}))
+    return _concat(frames, CURVE_COLUMNS)
 
 
 def has_wall_times(episodes: pd.DataFrame | None) -> bool:
@@ -239,8 +228,7 @@ def wallclock_curves(
     :param seed: Seed of the bootstrap
     :return: One row per (env, algo, time), columns :data:`WALLCLOCK_CURVE_COLUMNS`
     """
-    if n_points < 2:
-        raise ValueError(f"n_points must be >= 2, got {n_points}")
+    _at_least_two(n_points, "n_points")
     timed = evaluation_times(evaluations, episodes)
     frames = []
     for (env, algo), group in timed.groupby(["env", "algo"], sort=True):
@@ -250,32 +238,10 @@ def wallclock_curves(
         if stop <= start:
             continue
         times = np.linspace(start, stop, n_points)
-        matrix = np.stack(
-            [
-                run["mean_return"].to_numpy(np.float64)[
-                    np.searchsorted(run["wall_time_s"].to_numpy(np.float64), times, side="right") - 1
-                ]
-                for run in runs
-            ]
-        )
-        point, interval = _bootstrap(matrix[:, None, :], _curve_metrics, reps, seed)
-        frames.append(
-            pd.DataFrame(
-                {
-                    "env": env,
-                    "algo": algo,
-                    "wall_time_s": times,
-                    "n_runs": matrix.shape[0],
-                    "mean": point[:n_points],
-                    "mean_ci_low": interval[0, :n_points],
-                    "mean_ci_high": interval[1, :n_points],
-                    "iqm": point[n_points : 2 * n_points],
-                }
-            )
-        )
-    if not frames:
-        return pd.DataFrame(columns=list(WALLCLOCK_CURVE_COLUMNS))
-    return pd.concat(frames, ignore_index=True)[list(WALLCLOCK_CURVE_COLUMNS)]
+        latest = [np.searchsorted(run["wall_time_s"].to_numpy(np.float64), times, side="right") - 1 for run in runs]
+        matrix = np.stack([run["mean_return"].to_numpy(np.float64)[index] for run, index in zip(runs, latest, strict=True)])
+        frames.append(pd.DataFrame({"env": env, "algo": algo, "wall_time_s": times, **_curve_columns(matrix, reps, seed)}))
+    return _concat(frames, WALLCLOCK_CURVE_COLUMNS)
 
 
 def time_to_threshold(evaluations: pd.DataFrame, episodes: pd.DataFrame, threshold: float) -> pd.DataFrame:
@@ -290,6 +256,7 @@ def time_to_threshold(evaluations: pd.DataFrame, episodes: pd.DataFrame, thresho
     :return: One row per run: ``env``, ``algo``, ``seed``, ``reached``, ``timesteps``, ``episodes``,
         ``budget_timesteps`` and ``budget_episodes`` (the run's last evaluation and the episodes finished by then)
     """
+    columns = ("env", "algo", "seed", "reached", "timesteps", "episodes", "budget_timesteps", "budget_episodes")
     rows = []
     for (env, algo, seed), run in evaluations.groupby(["env", "algo", "seed"], sort=True):
         run = run.sort_values("timesteps")
@@ -300,20 +267,9 @@ def time_to_threshold(evaluations: pd.DataFrame, episodes: pd.DataFrame, thresho
             (episodes["env"] == env) & (episodes["algo"] == algo) & (episodes["seed"] == seed), "timesteps"
         ].to_numpy(np.int64)
         reached = first < len(steps)
-        rows.append(
-            {
-                "env": env,
-                "algo": algo,
-                "seed": seed,
-                "reached": reached,
-                "timesteps": int(steps[first]) if reached else np.nan,
-                "episodes": int((ends <= steps[first]).sum()) if reached else np.nan,
-                "budget_timesteps": int(steps[-1]),
-                "budget_episodes": int((ends <= steps[-1]).sum()),
-            }
-        )
-    columns = ["env", "algo", "seed", "reached", "timesteps", "episodes", "budget_timesteps", "budget_episodes"]
-    return pd.DataFrame(rows, columns=columns)
+        reached_at = (int(steps[first]), int((ends <= steps[first]).sum())) if reached else (np.nan, np.nan)
+        rows.append([env, algo, seed, reached, *reached_at, int(steps[-1]), int((ends <= steps[-1]).sum())])
+    return pd.DataFrame(rows, columns=list(columns))
 
 
 def episode_variance(episodes: pd.DataFrame, window: int = 10) -> pd.DataFrame:
@@ -332,20 +288,9 @@ def episode_variance(episodes: pd.DataFrame, window: int = 10) -> pd.DataFrame:
             continue
         variance = matrix.var(axis=0, ddof=1)
         smoothed = pd.Series(variance).rolling(window, min_periods=1).mean().to_numpy()
-        frames.append(
-            pd.DataFrame(
-                {
-                    "env": env,
-                    "algo": algo,
-                    "episode": index.astype(np.int64),
-                    "n_runs": matrix.shape[0],
-                    "variance": variance,
-                    "variance_smoothed": smoothed,
-                }
-            )
-        )
-    columns = ["env", "algo", "episode", "n_runs", "variance", "variance_smoothed"]
-    return pd.concat(frames, ignore_index=True)[columns] if frames else pd.DataFrame(columns=columns)
+        columns = {"episode": index.astype(np.int64), "n_runs": matrix.shape[0], "variance": variance}
+        frames.append(pd.DataFrame({"env": env, "algo": algo, **columns, "variance_smoothed": smoothed}))
+    return _concat(frames, ("env", "algo", "episode", "n_runs", "variance", "variance_smoothed"))
 
 
 def performance_profiles(final: pd.DataFrame, n_taus: int = 101, reps: int = 2000, seed: int = 0) -> pd.DataFrame:
@@ -360,8 +305,7 @@ def performance_profiles(final: pd.DataFrame, n_taus: int = 101, reps: int = 200
     :param seed: Seed of the bootstrap
     :return: One row per (env, algo, tau), columns :data:`PERFORMANCE_PROFILE_COLUMNS`
     """
-    if n_taus < 2:
-        raise ValueError(f"n_taus must be >= 2, got {n_taus}")
+    _at_least_two(n_taus, "n_taus")
     frames = []
     for env, table in final.groupby("env", sort=True):
         returns = table["mean_return"].to_numpy(dtype=np.float64)
@@ -379,22 +323,9 @@ def performance_profiles(final: pd.DataFrame, n_taus: int = 101, reps: int = 200
                         {"scores": scores}, taus, reps=reps, confidence_interval_size=CONFIDENCE
                     )
                 fraction, (low, high) = np.asarray(profiles["scores"]), np.asarray(cis["scores"])
-            frames.append(
-                pd.DataFrame(
-                    {
-                        "env": env,
-                        "algo": algo,
-                        "n_runs": scores.shape[0],
-                        "tau": taus,
-                        "fraction": fraction,
-                        "fraction_ci_low": low,
-                        "fraction_ci_high": high,
-                    }
-                )
-            )
-    if not frames:
-        return pd.DataFrame(columns=list(PERFORMANCE_PROFILE_COLUMNS))
-    return pd.concat(frames, ignore_index=True)[list(PERFORMANCE_PROFILE_COLUMNS)]
+            profile = {"fraction": fraction, "fraction_ci_low": low, "fraction_ci_high": high}
+            frames.append(pd.DataFrame({"env": env, "algo": algo, "n_runs": scores.shape[0], "tau": taus, **profile}))
+    return _concat(frames, PERFORMANCE_PROFILE_COLUMNS)
 
 
 def probability_of_improvement(final: pd.DataFrame, reps: int = 2000, seed: int = 0) -> pd.DataFrame:
@@ -426,23 +357,8 @@ def probability_of_improvement(final: pd.DataFrame, reps: int = 2000, seed: int 
         n_x, n_y = min(len(x) for x, _ in scores), min(len(y) for _, y in scores)
         matrix_x = np.stack([x[:n_x] for x, _ in scores], axis=1)
         matrix_y = np.stack([y[:n_y] for _, y in scores], axis=1)
-        if n_x < 2 or n_y < 2:
-            point = float(metrics.probability_of_improvement(matrix_x, matrix_y))
-            low, high = point, point
-        else:
-            with _seeded_bootstrap(seed):
-                points, intervals = rly.get_interval_estimates(
-                    {"pair": (matrix_x, matrix_y)},
-                    metrics.probability_of_improvement,
-                    reps=reps,
-                    confidence_interval_size=CONFIDENCE,
-                    random_state=np.random.RandomState(seed),
-                )
-            point = float(np.asarray(points["pair"]))
-            low, high = (float(value) for value in np.asarray(intervals["pair"]).ravel())
-        rows.append(
-            {"algo_x": algo_x, "algo_y": algo_y, "n_envs": len(scores), "probability": point, "ci_low": low, "ci_high": high}
-        )
+        point, interval = _bootstrap((matrix_x, matrix_y), metrics.probability_of_improvement, reps, seed)
+        rows.append([algo_x, algo_y, len(scores), float(point), *(float(bound) for bound in interval.ravel())])
     return pd.DataFrame(rows, columns=list(IMPROVEMENT_COLUMNS))
 
 
@@ -452,10 +368,7 @@ def markdown_table(performance: pd.DataFrame) -> str:
 
     :param performance: The output of :func:`final_performance`
     """
-    lines = [
-        "| Environment | Algorithm | Runs | IQM [95% CI] | Mean [95% CI] |",
-        "|---|---|---:|---:|---:|",
-    ]
+    lines = ["| Environment | Algorithm | Runs | IQM [95% CI] | Mean [95% CI] |", "|---|---|---:|---:|---:|"]
     for row in performance.itertuples(index=False):
         lines.append(
             f"| {row.env} | {row.algo} | {row.n_runs} "

@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -24,7 +24,7 @@ from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CS
 from sb3_adc.experiment.plots import plot_results
 from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc.experiment.results import read_table
-from sb3_adc.experiment.statistics import CONFIDENCE, _seeded_bootstrap, final_performance, time_to_threshold
+from sb3_adc.experiment.statistics import final_performance, interval_estimates, iqm_and_mean, time_to_threshold
 from sb3_adc.experiment.test_sets import write_summary as write_test_summary
 from sb3_adc.extras import requires_extra
 
@@ -33,19 +33,11 @@ if TYPE_CHECKING:
 
 with requires_extra("experiment", "the experiment summaries"):
     import pandas as pd
-    from rliable import library as rly
     from rliable import metrics
 
 #: Columns of the formatted summary (``summary.md`` and ``summary_table.csv``) but the last, which names the
 #: reference: see :func:`display_columns`.
 _DISPLAY_COLUMNS = ["env", "configuration", "runs", "final IQM [95% CI]", "final mean", "across-seed std", "AUC IQM [95% CI]"]
-
-
-def _interval(data: dict[str, Any], func: Callable[..., Any], reps: int, seed: int) -> tuple[dict[str, Any], dict[str, Any]]:
-    with _seeded_bootstrap(seed):
-        return rly.get_interval_estimates(
-            data, func, reps=reps, confidence_interval_size=CONFIDENCE, random_state=np.random.RandomState(seed)
-        )
 
 
 def _area(curve: pd.DataFrame) -> float:
@@ -79,9 +71,8 @@ def summary(
             curves = evaluations[(evaluations["env"] == env) & (evaluations["algo"] == name)]
             per_run = [_area(curves[curves["seed"] == seed].sort_values("timesteps")) for seed in ordered["seed"]]
             areas[str(name)] = np.asarray(per_run).reshape(-1, 1)
-        iqm_mean = lambda x: np.array([metrics.aggregate_iqm(x), metrics.aggregate_mean(x)])  # noqa: E731
-        final_points, final_intervals = _interval(scores, iqm_mean, reps, 0)
-        area_points, area_intervals = _interval(areas, iqm_mean, reps, 1)
+        final_points, final_intervals = interval_estimates(scores, iqm_and_mean, reps, 0)
+        area_points, area_intervals = interval_estimates(areas, iqm_and_mean, reps, 1)
         improvement: tuple[dict[str, Any], dict[str, Any]] = ({}, {})
         if reference is not None and reference in scores:
             pairs = {
@@ -90,7 +81,7 @@ def summary(
                 if name != reference and other.shape == scores[reference].shape
             }
             if pairs:
-                improvement = _interval(pairs, metrics.probability_of_improvement, reps, 2)
+                improvement = interval_estimates(pairs, metrics.probability_of_improvement, reps, 2)
         for name in scores:
             row: dict[str, Any] = {
                 "env": env,

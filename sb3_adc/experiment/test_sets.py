@@ -21,13 +21,17 @@ from __future__ import annotations
 import json
 import os
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import pandas as pd
+
+if TYPE_CHECKING:
+    from sb3_adc.experiment.backends import RunOutcome
+    from sb3_adc.experiment.benchmark import BenchmarkSettings
 
 #: Keys of one test set, and the models a test set can score.
 TEST_SET_KEYS = ("env_kwargs", "layout_seeds", "courses", "episodes", "model")
@@ -77,8 +81,9 @@ class TestSet:
         return json.loads(json.dumps(asdict(self)))
 
 
-def _count(value: Any, high: int) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= high
+def is_int(value: Any, low: int, high: int) -> bool:
+    """Whether ``value`` is an integer (not a bool) from ``low`` to ``high``: a count or a seed of a file's key."""
+    return isinstance(value, int) and not isinstance(value, bool) and low <= value <= high
 
 
 def read_test_sets(value: Any) -> dict[str, TestSet]:
@@ -103,14 +108,14 @@ def read_test_sets(value: Any) -> dict[str, TestSet]:
             raise TestSetError(f"{key}.env_kwargs", "must be a mapping of gym.make keywords")
         if layouts is not None:
             bounds: Any = (layouts.get("start"), layouts.get("stop")) if isinstance(layouts, Mapping) else (None, None)
-            if not (_count(bounds[0], 2**31) and _count(bounds[1], 2**31) and 0 < bounds[1] - bounds[0] <= MAX_EPISODES):
+            if not (is_int(bounds[0], 0, 2**31) and is_int(bounds[1], 0, 2**31) and 0 < bounds[1] - bounds[0] <= MAX_EPISODES):
                 raise TestSetError(f"{key}.layout_seeds", f"must be {{start: int, stop: int}}, 1 to {MAX_EPISODES} seeds")
             layouts = (int(bounds[0]), int(bounds[1]))
         if courses is not None and (layouts is not None or not isinstance(courses, list) or not courses):
             raise TestSetError(f"{key}.courses", "must list course names, and not go with layout_seeds")
         if courses is not None and not all(isinstance(course, str) and course for course in courses):
             raise TestSetError(f"{key}.courses", "must list course names")
-        if not _count(episodes, MAX_EPISODES) or episodes < 1 or (layouts is not None and "episodes" in spec):
+        if not is_int(episodes, 1, MAX_EPISODES) or (layouts is not None and "episodes" in spec):
             raise TestSetError(f"{key}.episodes", f"must be in 1-{MAX_EPISODES} (one per layout seed with layout_seeds)")
         if model not in MODELS:
             raise TestSetError(f"{key}.model", f"must be one of {', '.join(MODELS)}")
@@ -251,6 +256,31 @@ def score(runs: dict[tuple[str, str, int], str], test_sets: dict[str, TestSet], 
     run_rates(table).to_csv(os.path.join(output, RUNS_CSV), index=False)
     with open(settings_path, "w", encoding="utf-8") as stream:
         stream.write(json.dumps(current, indent=2) + "\n")
+
+
+def score_outcomes(
+    outcomes: Sequence[RunOutcome],
+    grids: Mapping[str, BenchmarkSettings],
+    test_sets: dict[str, TestSet],
+    output: str,
+    workers: int,
+) -> None:
+    """
+    :func:`score` the finished runs of an experiment's grids.
+
+    :param outcomes: The runs' outcomes
+    :param grids: Configuration name -> its grid
+    :param test_sets: Name -> test set
+    :param output: The experiment's results folder
+    :param workers: Runs scored in parallel
+    """
+    names = {os.path.normpath(grid.log_folder): name for name, grid in grids.items()}
+    finished = {
+        (names[os.path.normpath(run.log_folder)], run.spec.env_id, run.spec.seed): run.spec.run_dir(run.log_folder)
+        for run in outcomes
+        if run.final is not None
+    }
+    score(finished, test_sets, output, workers)
 
 
 def summary(rates: pd.DataFrame, references: Mapping[str, str | None], reps: int) -> pd.DataFrame:
