@@ -10,7 +10,7 @@ from typing import TypeVar
 
 from tqdm import tqdm
 
-from sb3_adc.cli.common import CommandError, apply_runtime_arguments, key_values
+from sb3_adc.cli.common import CommandError, add_command, apply_runtime_arguments, key_values
 from sb3_adc.config import ALGORITHMS, check_env_id
 from sb3_adc.experiment.benchmark import INTERRUPTED, BenchmarkSettings, RunOutcome, run_benchmark
 
@@ -18,6 +18,8 @@ Result = TypeVar("Result")
 #: What a grid calls as each run finishes: (outcome, runs done, runs in total).
 Reporter = Callable[[RunOutcome, int, int], None]
 
+#: The line of ``sb3-adc benchmark`` in ``sb3-adc --help``.
+HELP = "train a grid of algorithms x environments x seeds in parallel (resumable), write tidy CSVs"
 DESCRIPTION = """\
 Train every algorithm on every environment with every seed, one run per process (local backend)
 or per Ray task (--backend ray), and write three tidy CSVs to the log folder:
@@ -46,12 +48,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
     :param subparsers: The ``sb3-adc`` sub-parsers
     """
-    parser = subparsers.add_parser(
-        "benchmark",
-        help="train a grid of algorithms x environments x seeds in parallel (resumable), write tidy CSVs",
-        description=DESCRIPTION,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = add_command(subparsers, "benchmark", HELP, DESCRIPTION, run)
     parser.add_argument("--algos", nargs="+", required=True, choices=ALGORITHMS.names(), metavar="ALGO", help="algorithms")
     parser.add_argument("--envs", nargs="+", required=True, metavar="ENV", help="environment ids")
     seeds = parser.add_mutually_exclusive_group()
@@ -68,7 +65,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--device", default="cpu", help="PyTorch device of the runs (default: cpu)")
     parser.add_argument("--num-threads", type=int, default=1, help=argparse.SUPPRESS)
     parser.add_argument("--gym-packages", nargs="+", default=[], metavar="MODULE", help="modules registering environments")
-    parser.set_defaults(handler=run)
 
 
 def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
@@ -82,16 +78,20 @@ def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--address", default=None, help="Ray backend: cluster address (default: start a local Ray)")
 
 
-def check_backend_arguments(args: argparse.Namespace) -> None:
+def apply_grid_arguments(args: argparse.Namespace) -> None:
     """
-    Check the options of :func:`add_backend_arguments`: ``--workers`` between 1 and four per CPU.
+    Apply the runtime options (:func:`~sb3_adc.cli.common.apply_runtime_arguments`) and check those of
+    :func:`add_backend_arguments`: ``--workers`` between 1 and four per CPU, and no ``--gym-packages`` with Ray.
 
     :param args: The parsed command line
-    :raises CommandError: for a number of workers out of that range
+    :raises CommandError: for a number of workers out of that range, or ``--gym-packages`` with ``--backend ray``
     """
+    apply_runtime_arguments(args)
     most = (os.cpu_count() or 1) * 4
     if args.workers is not None and not 1 <= args.workers <= most:
         raise CommandError(f"--workers must be between 1 and {most}, got {args.workers}")
+    if args.gym_packages and args.backend == "ray":
+        raise CommandError("--gym-packages is not forwarded to Ray workers; register environments in an imported package")
 
 
 def run_with_progress(n_runs: int, grid: Callable[[Reporter], Result], name_runs: bool = False) -> Result | None:
@@ -140,10 +140,7 @@ def run(args: argparse.Namespace) -> int:
     :param args: The parsed command line
     :return: The exit status (1 if some runs failed)
     """
-    apply_runtime_arguments(args)
-    check_backend_arguments(args)
-    if args.gym_packages and args.backend == "ray":
-        raise CommandError("--gym-packages is not forwarded to Ray workers; register environments in an imported package")
+    apply_grid_arguments(args)
     for env_id in args.envs:
         check_env_id(env_id)
     settings = BenchmarkSettings(

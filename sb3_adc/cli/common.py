@@ -6,6 +6,7 @@ import argparse
 import importlib
 import random
 import re
+from collections.abc import Callable
 from typing import Any
 
 import torch as th
@@ -16,6 +17,30 @@ from sb3_adc.experiment.settings import check_device
 
 class CommandError(Exception):
     """A problem with the command line that ends the command with a message (exit status 2)."""
+
+
+def add_command(
+    subparsers: argparse._SubParsersAction,
+    name: str,
+    help: str,
+    description: str,
+    handler: Callable[[argparse.Namespace], int],
+) -> argparse.ArgumentParser:
+    """
+    Add a sub-command: its parser, whose ``--help`` prints ``description`` as written (examples and tables keep
+    their lines), and the function that runs it.
+
+    :param subparsers: The ``sb3-adc`` sub-parsers
+    :param name: The sub-command's name
+    :param help: Its line in ``sb3-adc --help``
+    :param description: Its ``--help`` text
+    :param handler: Runs it with the parsed command line and returns the exit status
+    """
+    parser = subparsers.add_parser(
+        name, help=help, description=description, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.set_defaults(handler=handler)
+    return parser
 
 
 def add_algo_argument(parser: argparse.ArgumentParser, required: bool = True) -> None:
@@ -99,6 +124,29 @@ def key_values(items: list[str] | None, option: str) -> dict[str, Any]:
     """
     return {
         key: _numbers_as_numbers(value) for key, value in parse_overrides(items or [], source=f"command line {option}").items()
+    }
+
+
+#: Options of ``sb3-adc train`` that a run's and a study's settings take under the same names.
+_SHARED_TRAIN_OPTIONS = ("conf_file", "n_timesteps", "log_folder", "eval_episodes", "final_eval_episodes", "device", "verbose")
+
+
+def train_options(args: argparse.Namespace) -> dict[str, Any]:
+    """
+    The settings that a training run (:class:`~sb3_adc.experiment.settings.TrainSettings`) and a tuning study
+    (:class:`~sb3_adc.experiment.tuning.TuneSettings`) take alike from the options of ``sb3-adc train``: the
+    algorithm, environment, hyperparameter file and overrides, budget, environment keywords, log folder, evaluation
+    episodes, device and verbosity.
+
+    :param args: The parsed command line
+    """
+    return {
+        "algo": args.algo,
+        "env_id": args.env,
+        "overrides": key_values(args.hyperparams, "-params"),
+        "env_kwargs": key_values(args.env_kwargs, "--env-kwargs"),
+        "eval_env_kwargs": key_values(args.eval_env_kwargs, "--eval-env-kwargs"),
+        **{name: getattr(args, name) for name in _SHARED_TRAIN_OPTIONS},
     }
 
 

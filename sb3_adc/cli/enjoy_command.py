@@ -7,11 +7,13 @@ import os
 
 import numpy as np
 
-from sb3_adc.cli.common import CommandError, add_algo_argument, add_runtime_arguments, apply_runtime_arguments
+from sb3_adc.cli.common import CommandError, add_algo_argument, add_command, add_runtime_arguments, apply_runtime_arguments
 from sb3_adc.common.safe_load import UnsafeModelFileError
 from sb3_adc.experiment.enjoy import MODEL_CHOICES, default_seed, load_model, load_run, model_path, play, write_recording
 from sb3_adc.experiment.layout import env_name, latest_run_dir
 
+#: The line of ``sb3-adc enjoy`` in ``sb3-adc --help``.
+HELP = "play a trained model and print its returns; --gif/--video record a rollout"
 DESCRIPTION = """\
 Load a model trained by `sb3-adc train`, run episodes with it in the run's environment (same
 wrappers and normalization statistics), and print the return of each episode and their mean.
@@ -29,12 +31,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
     :param subparsers: The ``sb3-adc`` sub-parsers
     """
-    parser = subparsers.add_parser(
-        "enjoy",
-        help="play a trained model and print its returns; --gif/--video record a rollout",
-        description=DESCRIPTION,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = add_command(subparsers, "enjoy", HELP, DESCRIPTION, run)
     add_algo_argument(parser, required=False)
     parser.add_argument("--env", help="environment id")
     parser.add_argument("-f", "--log-folder", default="logs", help="log folder (default: logs)")
@@ -65,7 +62,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "only known classes and refuses the rest)",
     )
     add_runtime_arguments(parser)
-    parser.set_defaults(handler=run)
 
 
 def _run_dir(args: argparse.Namespace) -> str:

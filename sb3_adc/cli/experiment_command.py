@@ -6,12 +6,14 @@ import argparse
 import contextlib
 import os
 
-from sb3_adc.cli.benchmark_command import add_backend_arguments, check_backend_arguments, run_with_progress
-from sb3_adc.cli.common import apply_runtime_arguments
+from sb3_adc.cli.benchmark_command import add_backend_arguments, apply_grid_arguments, run_with_progress
+from sb3_adc.cli.common import add_command
 from sb3_adc.config import check_env_id
 from sb3_adc.experiment.experiments import read_experiment, run_experiment
 from sb3_adc.experiment.layout import FolderLock
 
+#: The line of ``sb3-adc experiment`` in ``sb3-adc --help``.
+HELP = "run an experiment file (configurations x environments x seeds), write its tables and figures"
 DESCRIPTION = """\
 Run the experiment a YAML file describes (its format: sb3_adc.experiment.experiments, and the files
 of benchmarks/experiments/): every configuration x environment x seed, one run per process (local
@@ -39,12 +41,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
     :param subparsers: The ``sb3-adc`` sub-parsers
     """
-    parser = subparsers.add_parser(
-        "experiment",
-        help="run an experiment file (configurations x environments x seeds), write its tables and figures",
-        description=DESCRIPTION,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = add_command(subparsers, "experiment", HELP, DESCRIPTION, run)
     parser.add_argument("file", help="the experiment file (YAML)")
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--report", action="store_true", help="only rewrite the summary and figures from its tables")
@@ -52,7 +49,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--tiny", action="store_true", help="a check: one seed, one environment, a few hundred steps, in a temporary folder"
     )
     add_backend_arguments(parser)
-    parser.set_defaults(handler=run, device="cpu", num_threads=1, gym_packages=[])
+    parser.set_defaults(device="cpu", num_threads=1, gym_packages=[])
 
 
 def run(args: argparse.Namespace) -> int:
@@ -62,8 +59,7 @@ def run(args: argparse.Namespace) -> int:
     :param args: The parsed command line
     :return: The exit status (1 if some runs failed)
     """
-    apply_runtime_arguments(args)
-    check_backend_arguments(args)
+    apply_grid_arguments(args)
     experiment = read_experiment(args.file)
     for env_id in experiment.envs:
         check_env_id(env_id)

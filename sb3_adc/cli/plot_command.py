@@ -12,7 +12,7 @@ import sys
 
 import pandas as pd
 
-from sb3_adc.cli.common import CommandError
+from sb3_adc.cli.common import CommandError, add_command
 from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CSV
 from sb3_adc.experiment.layout import RunLayout
 from sb3_adc.experiment.results import (
@@ -33,6 +33,8 @@ CSV_ACCEPTS = (
     "sb3-adc train (e.g. logs/adc/Pendulum-v1_1, or its evaluations.npz) or a folder of such runs (e.g. logs)"
 )
 
+#: The line of ``sb3-adc plot`` in ``sb3-adc --help``.
+HELP = "learning curves, reward variance, IQM/mean, performance profiles, P(X > Y) with bootstrap CIs (rliable)"
 DESCRIPTION = """\
 Plot the results of `sb3-adc benchmark` with rliable statistics (95% stratified-bootstrap CIs):
 
@@ -62,12 +64,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
     :param subparsers: The ``sb3-adc`` sub-parsers
     """
-    parser = subparsers.add_parser(
-        "plot",
-        help="learning curves, reward variance, IQM/mean, performance profiles, P(X > Y) with bootstrap CIs (rliable)",
-        description=DESCRIPTION,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = add_command(subparsers, "plot", HELP, DESCRIPTION, run)
     parser.add_argument(
         "--csv",
         required=True,
@@ -82,7 +79,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--reps", type=int, default=2000, help="bootstrap replications (default: 2000)")
     parser.add_argument("--window", type=int, default=10, help="episodes of the variance moving average (default: 10)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (default: 0)")
-    parser.set_defaults(handler=run)
 
 
 def _read(path: str | None, default: str, required_columns: tuple[str, ...], option: str = "--csv") -> pd.DataFrame | None:

@@ -14,10 +14,11 @@ import sb3_adc
 from sb3_adc.cli.common import (
     CommandError,
     add_algo_argument,
+    add_command,
     add_runtime_arguments,
     apply_runtime_arguments,
-    key_values,
     resolve_seed,
+    train_options,
 )
 from sb3_adc.cli.tune_arguments import TUNING_HELP, add_tuning_arguments, run_tuning
 from sb3_adc.common.safe_load import UnsafeModelFileError
@@ -26,6 +27,8 @@ from sb3_adc.experiment import TrainSettings, find_run, resume, train
 from sb3_adc.experiment.settings import BEST_MODEL_METRICS
 from sb3_adc.extras import requires_extra
 
+#: The line of ``sb3-adc train`` in ``sb3-adc --help``.
+HELP = "train an algorithm on an environment (RL-Zoo log layout, checkpoints, resume)"
 DESCRIPTION = """\
 Train an algorithm on an environment with the hyperparameters of its YAML file (the shipped
 {algo}.yml, or -conf FILE), evaluating it periodically and checkpointing it, then print the final
@@ -54,12 +57,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
     :param subparsers: The ``sb3-adc`` sub-parsers
     """
-    parser = subparsers.add_parser(
-        "train",
-        help="train an algorithm on an environment (RL-Zoo log layout, checkpoints, resume)",
-        description=DESCRIPTION + TUNING_HELP,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = add_command(subparsers, "train", HELP, DESCRIPTION + TUNING_HELP, run)
     add_algo_argument(parser, required=False)
     parser.add_argument("--env", help="environment id, e.g. Pendulum-v1 or sb3_adc/NoisyPendulum-v1")
     parser.add_argument("--seed", type=int, default=-1, help="random seed (default: -1, a random seed)")
@@ -149,7 +147,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--wandb-entity", default=None, help="Weights & Biases entity (team) of the project (default: your own)"
     )
     add_tuning_arguments(parser)
-    parser.set_defaults(handler=run)
 
 
 #: Options of a new run (their settings are saved with it): --resume uses the saved ones.
@@ -242,33 +239,15 @@ def run(args: argparse.Namespace) -> int:
     if args.algo is None or args.env is None:
         raise CommandError("--algo and --env are required (or --resume RUN_DIR)")
     check_env_id(args.env)
-    seed = resolve_seed(args.seed)
+    # The options named as TrainSettings' fields, beyond those it shares with a study's settings.
+    same = "eval_freq n_eval_envs save_freq keep_checkpoints vec_env tensorboard_log trained_agent track"
+    same += " wandb_project_name wandb_entity"
     settings = TrainSettings(
-        algo=args.algo,
-        env_id=args.env,
-        seed=seed,
-        conf_file=args.conf_file,
-        overrides=key_values(args.hyperparams, "-params"),
-        env_kwargs=key_values(args.env_kwargs, "--env-kwargs"),
-        n_timesteps=args.n_timesteps,
-        log_folder=args.log_folder,
-        eval_freq=args.eval_freq,
-        eval_episodes=args.eval_episodes,
-        n_eval_envs=args.n_eval_envs,
-        save_freq=args.save_freq,
-        keep_checkpoints=args.keep_checkpoints,
-        final_eval_episodes=args.final_eval_episodes,
-        vec_env=args.vec_env,
-        device=args.device,
-        verbose=args.verbose,
+        seed=resolve_seed(args.seed),
         progress_bar=progress_bar,
-        eval_env_kwargs=key_values(args.eval_env_kwargs, "--eval-env-kwargs"),
-        tensorboard_log=args.tensorboard_log,
-        trained_agent=args.trained_agent,
-        track=args.track,
-        wandb_project_name=args.wandb_project_name,
-        wandb_entity=args.wandb_entity,
         best_model_metric=args.best_model_metric or "return",
+        **train_options(args),
+        **{name: getattr(args, name) for name in same.split()},
     )
     with refusing_unsafe_files(), tracking(settings):
         train(settings, trust_model_file=args.trust_model_file)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 
-from sb3_adc.cli.common import CommandError, key_values
+from sb3_adc.cli.common import CommandError, train_options
 
 TUNING_HELP = """\
 tuning (-optimize): Optuna studies whose first trial is the shipped entry; a trial's value is its mean final
@@ -25,7 +25,7 @@ def add_tuning_arguments(parser: argparse.ArgumentParser) -> None:
 
     :param parser: The ``train`` parser
     """
-    from sb3_adc.experiment.tuning import OBJECTIVE_NAMES, PRUNER_NAMES, SAMPLER_NAMES
+    from sb3_adc.experiment.tuning_settings import OBJECTIVE_NAMES, PRUNER_NAMES, SAMPLER_NAMES
 
     group = parser.add_argument_group("tuning (-optimize)")
     group.add_argument(
@@ -94,20 +94,12 @@ def run_tuning(args: argparse.Namespace) -> int:
         if not os.path.isfile(args.search_space):
             raise CommandError(f"--search-space: no file {args.search_space}")
         search_space = read_yaml_file(args.search_space)
-    # The options named as TuneSettings' fields.
-    same = "n_trials n_timesteps sampler pruner n_startup_trials n_evaluations eval_episodes final_eval_episodes n_jobs"
-    same += " storage study_name sampler_seed conf_file objective"
+    # The options named as TuneSettings' fields, beyond those it shares with a run's settings.
+    same = "n_trials sampler pruner n_startup_trials n_evaluations n_jobs storage study_name sampler_seed objective"
     settings = TuneSettings(
-        algo=args.algo,
-        env_id=args.env,
         seeds=tuple(seeds),
-        overrides=key_values(args.hyperparams, "-params"),
-        env_kwargs=key_values(args.env_kwargs, "--env-kwargs"),
-        eval_env_kwargs=key_values(args.eval_env_kwargs, "--eval-env-kwargs"),
         search_space=search_space,
-        log_folder=args.log_folder,
-        device=args.device,
-        verbose=args.verbose,
+        **train_options(args),
         **{name: getattr(args, name) for name in same.split()},
     )
     tune(settings)

@@ -15,8 +15,8 @@ with ``weights_only=True``; cloudpickle itself has no such mode.
 
 The pickles of a run folder (a checkpoint's replay buffer, ``VecNormalize`` statistics and continuation) are read
 the same way by :func:`restricted_load`, each with an allow-list of exactly the globals such a file holds when
-sb3-adc writes it (:data:`REPLAY_BUFFER_GLOBALS`, :data:`VEC_NORMALIZE_GLOBALS`, and the continuation's in
-:mod:`sb3_adc.experiment.continuation`): a file planted in a run folder is refused, not run.
+sb3-adc writes it (:data:`REPLAY_BUFFER_GLOBALS`, :data:`VEC_NORMALIZE_GLOBALS`, :data:`CONTINUATION_GLOBALS`): a
+file planted in a run folder is refused, not run.
 """
 
 from __future__ import annotations
@@ -101,10 +101,7 @@ SPACE_GLOBALS: dict[str, frozenset[str]] = {
     module: names for module, names in ALLOWED.items() if module.startswith("gymnasium.spaces.")
 }
 #: Harmless constructors of Python's own types that a pickle may name.
-BUILTIN_GLOBALS: dict[str, frozenset[str]] = {
-    "builtins": ALLOWED["builtins"],
-    "collections": ALLOWED["collections"],
-}
+BUILTIN_GLOBALS: dict[str, frozenset[str]] = {module: ALLOWED[module] for module in ("builtins", "collections")}
 #: The globals of a replay buffer saved by SB3's ``save_replay_buffer`` (a checkpoint's
 #: ``rl_model_replay_buffer_{t}_steps.pkl``, the RL Zoo's ``replay_buffer.pkl``): SB3's buffer classes, numpy,
 #: the spaces and the buffer's ``torch.device``.
@@ -112,10 +109,8 @@ REPLAY_BUFFER_GLOBALS: dict[str, frozenset[str]] = _merge(
     NUMPY_GLOBALS,
     SPACE_GLOBALS,
     BUILTIN_GLOBALS,
-    {
-        "torch": frozenset({"device"}),
-        "stable_baselines3.common.buffers": frozenset({"ReplayBuffer", "DictReplayBuffer", "NStepReplayBuffer"}),
-    },
+    {"torch": frozenset({"device"})},
+    {"stable_baselines3.common.buffers": ALLOWED["stable_baselines3.common.buffers"]},
 )
 #: The globals of ``VecNormalize`` statistics (a checkpoint's ``rl_model_vecnormalize_{t}_steps.pkl``, a run's
 #: ``vecnormalize.pkl``): ``VecNormalize`` without its environments, its ``RunningMeanStd``, numpy and the spaces.
@@ -123,10 +118,7 @@ VEC_NORMALIZE_GLOBALS: dict[str, frozenset[str]] = _merge(
     NUMPY_GLOBALS,
     SPACE_GLOBALS,
     BUILTIN_GLOBALS,
-    {
-        "stable_baselines3.common.running_mean_std": frozenset({"RunningMeanStd"}),
-        "stable_baselines3.common.vec_env.vec_normalize": frozenset({"VecNormalize"}),
-    },
+    {module: ALLOWED[module] for module in ALLOWED if module.endswith((".running_mean_std", ".vec_normalize"))},
 )
 #: The tensors of a pickle (PyTorch's random states in a continuation): rebuilt from their storage, which pickle
 #: keeps as ``torch.save`` bytes read back with ``torch.load(weights_only=True)`` (see :data:`_SUBSTITUTES`).
@@ -134,6 +126,15 @@ TENSOR_GLOBALS: dict[str, frozenset[str]] = {
     "torch._utils": frozenset({"_rebuild_tensor_v2"}),
     "torch.storage": frozenset({"_load_from_bytes"}),
 }
+#: The globals of a continuation (a checkpoint's ``rl_model_continuation_{t}_steps.pkl``,
+#: :class:`~sb3_adc.experiment.continuation.Continuation`): its own classes, numpy's arrays, scalars and generator
+#: states, PyTorch's random states (tensors) and the environments' infos (dicts of numbers and arrays).
+CONTINUATION_GLOBALS: dict[str, frozenset[str]] = _merge(
+    BUILTIN_GLOBALS,
+    NUMPY_GLOBALS,
+    TENSOR_GLOBALS,
+    {"sb3_adc.experiment.continuation": frozenset({"Continuation", "EpisodeRecord", "PendingStep"})},
+)
 
 
 def _storage_from_bytes(data: bytes) -> Any:

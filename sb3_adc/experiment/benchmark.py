@@ -151,23 +151,16 @@ class BenchmarkSettings:
         :param spec: The run
         """
         conf_file = None if self.conf_folder is None else os.path.join(self.conf_folder, f"{spec.algo}.yml")
+        # The settings named as TrainSettings' fields.
+        same = "n_timesteps log_folder eval_freq eval_episodes final_eval_episodes device keep_checkpoints best_model_metric"
         return TrainSettings(
-            algo=spec.algo,
-            env_id=spec.env_id,
-            seed=spec.seed,
+            **dataclasses.asdict(spec),
             conf_file=conf_file,
-            overrides=dict(self.overrides),
-            n_timesteps=self.n_timesteps,
-            log_folder=self.log_folder,
             run_dir=spec.run_dir(self.log_folder),
-            eval_freq=self.eval_freq,
-            eval_episodes=self.eval_episodes,
-            final_eval_episodes=self.final_eval_episodes,
-            device=self.device,
-            keep_checkpoints=self.keep_checkpoints,
             progress_bar=False,
+            overrides=dict(self.overrides),
             eval_env_kwargs=dict(self.eval_env_kwargs),
-            best_model_metric=self.best_model_metric,
+            **{name: getattr(self, name) for name in same.split()},
         )
 
 

@@ -1,34 +1,28 @@
 """
 Callbacks of a training run: periodic evaluation and checkpoints that a resumed run continues seamlessly.
 
-Every file a resume reads is written atomically (:mod:`sb3_adc.common.atomic`), and :func:`read_checkpoint`
-reads a checkpoint on disk once, telling whether it can be resumed from and giving what a resume loads, without
-running code from any of its files.
+Every file a resume reads is written atomically (:mod:`sb3_adc.common.atomic`); :mod:`sb3_adc.experiment.restore`
+reads them back.
 """
 
 from __future__ import annotations
 
 import os
+import signal
+import threading
 import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
-from stable_baselines3.common.save_util import load_from_pkl
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize
+from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_adc.common.atomic import atomic_path, write_atomically
-from sb3_adc.common.safe_load import (
-    REPLAY_BUFFER_GLOBALS,
-    VEC_NORMALIZE_GLOBALS,
-    DamagedEntryError,
-    UnsafeModelFileError,
-    restricted_load,
-    safe_objects,
-)
-from sb3_adc.experiment.continuation import CONTINUATION_GLOBALS, Continuation
+from sb3_adc.experiment.continuation import Continuation
 from sb3_adc.experiment.divergence import check_finite_weights
 from sb3_adc.experiment.evaluation import success_rate
 from sb3_adc.experiment.layout import CHECKPOINT_PREFIX, Checkpoint, DamagedFileError, RunLayout
@@ -239,6 +233,23 @@ class PeriodicEvalCallback(EvalCallback):
         return True
 
 
+def save_model(model: BaseAlgorithm, path: str, vecnormalize_path: str) -> None:
+    """
+    Save a model and its ``VecNormalize`` statistics (where it has them), each atomically, the model last: a
+    checkpoint counts once its model zip exists.
+
+    :param model: The model
+    :param path: Its zip
+    :param vecnormalize_path: The statistics' pickle
+    """
+    vec_normalize = model.get_vec_normalize_env()
+    if vec_normalize is not None:
+        with atomic_path(vecnormalize_path) as temporary:
+            vec_normalize.save(temporary)
+    with atomic_path(path) as temporary:
+        model.save(temporary)
+
+
 class StopRequested(Exception):
     """
     Raised by :class:`CheckpointSaver` at the end of a step's callbacks when a stop was requested (Ctrl-C), once
@@ -312,126 +323,37 @@ class CheckpointSaver(CheckpointCallback):
         if hasattr(self.model, "save_replay_buffer") and getattr(self.model, "replay_buffer", None) is not None:
             with atomic_path(checkpoint.replay_buffer) as temporary:
                 self.model.save_replay_buffer(temporary)
-        vec_normalize = self.model.get_vec_normalize_env()
-        if vec_normalize is not None:
-            with atomic_path(checkpoint.vecnormalize) as temporary:
-                vec_normalize.save(temporary)
         continuation = Continuation.capture(self.model, self.eval_env, step_locals) if exact else None
         if continuation is not None:
             with atomic_path(checkpoint.continuation) as temporary:
                 continuation.save(temporary)
-        with atomic_path(checkpoint.model) as temporary:
-            self.model.save(temporary)
+        save_model(self.model, checkpoint.model, checkpoint.vecnormalize)
         self._prune()
         return checkpoint
+
+    @contextmanager
+    def stopping_on_ctrl_c(self) -> Iterator[None]:
+        """
+        While the block runs (training), the first Ctrl-C (SIGINT) sets :attr:`stop_requested`: the next step saves
+        a checkpoint and stops; a second one raises ``KeyboardInterrupt`` at once. Signal handlers belong to the main
+        thread: elsewhere (a thread of the caller's) Ctrl-C keeps Python's behaviour.
+        """
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+
+        def request_stop(signum: int, frame: Any) -> None:
+            if self.stop_requested:
+                raise KeyboardInterrupt
+            self.stop_requested = True
+            print("\nCtrl-C: stopping after this step with a checkpoint (Ctrl-C again stops at once).", flush=True)
+
+        previous = signal.signal(signal.SIGINT, request_stop)
+        try:
+            yield
+        finally:
+            signal.signal(signal.SIGINT, previous)
 
     def _prune(self) -> None:
         for old in self.layout.checkpoints()[: -self.keep]:
             old.remove()
-
-
-class DamagedCheckpoint(ValueError):
-    """A checkpoint that cannot be resumed from: a file is missing, truncated or corrupted (the message says which)."""
-
-
-@dataclass
-class CheckpointContents:
-    """
-    A checkpoint read by :func:`read_checkpoint`: what a resume loads, each file read once.
-
-    :param checkpoint: Its files
-    :param model_objects: The ``custom_objects`` that load its model zip without unpickling anything
-        (:func:`~sb3_adc.common.safe_load.safe_objects`); ``None`` when trusted (SB3 unpickles the zip)
-    :param replay_buffer: Its replay buffer (``None`` where it has none)
-    :param vecnormalize: Its ``VecNormalize`` statistics, without environments (``None`` where it has none)
-    :param continuation: Its continuation (``None`` where it has none, or one of another version)
-    """
-
-    checkpoint: Checkpoint
-    model_objects: dict[str, Any] | None = None
-    replay_buffer: Any = None
-    vecnormalize: VecNormalize | None = None
-    continuation: Continuation | None = None
-
-
-def read_checkpoint(checkpoint: Checkpoint, trust: bool = False) -> CheckpointContents:
-    """
-    Read a checkpoint to resume from, and tell whether it can be: its model zip must open with intact members (CRC
-    checked) and an SB3 model's ``data``; its replay buffer, ``VecNormalize`` statistics and continuation, where
-    present, must unpickle. Nothing of the files runs code: the model's entries are built from the safe load's
-    allow-list (:func:`~sb3_adc.common.safe_load.safe_objects`), each pickle from the allow-list of what sb3-adc
-    writes in such a file (:data:`~sb3_adc.common.safe_load.REPLAY_BUFFER_GLOBALS`,
-    :data:`~sb3_adc.common.safe_load.VEC_NORMALIZE_GLOBALS`,
-    :data:`~sb3_adc.experiment.continuation.CONTINUATION_GLOBALS`).
-
-    :param checkpoint: The checkpoint
-    :param trust: Unpickle its files as SB3 does, which can run any code they hold (a run folder one trusts that
-        holds objects outside the allow-lists, e.g. a custom environment's in its infos)
-    :raises DamagedCheckpoint: for a missing model zip or a damaged file, naming it
-    :raises UnsafeModelFileError: for a file that needs a class or function outside its allow-list (a file planted
-        in the run folder, or written by other code): refused, not run, and not taken for damage
-    """
-    name = os.path.basename(checkpoint.model)
-    if not os.path.isfile(checkpoint.model):
-        raise DamagedCheckpoint(f"{name} is missing")
-    try:
-        with zipfile.ZipFile(checkpoint.model) as archive:
-            broken = archive.testzip()
-            names = archive.namelist()
-    except (OSError, zipfile.BadZipFile, EOFError, ValueError) as error:
-        raise DamagedCheckpoint(f"{name} does not open as a zip ({error})") from None
-    if broken is not None:
-        raise DamagedCheckpoint(f"{name}: member {broken} is corrupted")
-    if "data" not in names:
-        raise DamagedCheckpoint(f"{name} holds no SB3 model (no `data` member)")
-    contents = CheckpointContents(checkpoint)
-    if not trust:
-        try:
-            contents.model_objects = safe_objects(checkpoint.model)
-        except DamagedEntryError as error:
-            raise DamagedCheckpoint(str(error)) from None
-        except UnsafeModelFileError:
-            raise
-        except (OSError, zipfile.BadZipFile, KeyError, ValueError) as error:  # JSON and UTF-8 errors are ValueErrors
-            raise DamagedCheckpoint(f"{name}: its `data` does not read ({type(error).__name__}: {error})") from None
-    globals_of = {
-        checkpoint.replay_buffer: (REPLAY_BUFFER_GLOBALS, "a replay buffer"),
-        checkpoint.vecnormalize: (VEC_NORMALIZE_GLOBALS, "VecNormalize statistics"),
-        checkpoint.continuation: (CONTINUATION_GLOBALS, "a continuation"),
-    }
-    loaded: dict[str, Any] = {}
-    for path, (allowed, what) in globals_of.items():
-        if not os.path.isfile(path):
-            continue
-        try:
-            loaded[path] = load_from_pkl(path) if trust else restricted_load(path, allowed, what)
-        except UnsafeModelFileError:
-            raise
-        except Exception as error:  # unpickling a damaged file can raise almost anything
-            raise DamagedCheckpoint(f"{os.path.basename(path)} does not unpickle ({type(error).__name__}: {error})") from None
-    contents.replay_buffer = loaded.get(checkpoint.replay_buffer)
-    if contents.replay_buffer is not None and not isinstance(contents.replay_buffer, ReplayBuffer):
-        raise DamagedCheckpoint(f"{os.path.basename(checkpoint.replay_buffer)} holds no replay buffer")
-    statistics = loaded.get(checkpoint.vecnormalize)
-    if statistics is not None and not isinstance(statistics, VecNormalize):
-        raise DamagedCheckpoint(f"{os.path.basename(checkpoint.vecnormalize)} holds no VecNormalize statistics")
-    contents.vecnormalize = statistics
-    if checkpoint.continuation in loaded:
-        contents.continuation = Continuation.accept(loaded[checkpoint.continuation])
-    return contents
-
-
-def checkpoint_damage(checkpoint: Checkpoint, trust: bool = False) -> str | None:
-    """
-    Why a checkpoint cannot be resumed from, or ``None`` if it can (:func:`read_checkpoint`, whose content is
-    dropped: a resume keeps it instead).
-
-    :param checkpoint: The checkpoint
-    :param trust: As for :func:`read_checkpoint`
-    :raises UnsafeModelFileError: for a file outside the allow-lists, as :func:`read_checkpoint`
-    """
-    try:
-        read_checkpoint(checkpoint, trust)
-    except DamagedCheckpoint as error:
-        return str(error)
-    return None

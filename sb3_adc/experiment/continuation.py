@@ -16,8 +16,9 @@ interruption fell), checkpoints of older versions, runs with ``frame_stack`` or 
 gSDE exploration, and rollouts that a periodic checkpoint cuts (``train_freq`` longer than one step, which the
 checkpoint does not fall at the end of).
 
-A continuation is read back with an unpickler that builds only what one holds (:data:`CONTINUATION_GLOBALS`), so a
-file planted in a run folder runs no code (:func:`~sb3_adc.common.safe_load.restricted_load`).
+A continuation is read back with an unpickler that builds only what one holds
+(:data:`~sb3_adc.common.safe_load.CONTINUATION_GLOBALS`), so a file planted in a run folder runs no code
+(:func:`~sb3_adc.common.safe_load.restricted_load`).
 """
 
 from __future__ import annotations
@@ -32,24 +33,13 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
-from stable_baselines3.common.save_util import load_from_pkl, save_to_pkl
+from stable_baselines3.common.save_util import save_to_pkl
 from stable_baselines3.common.type_aliases import TrainFreq
 from stable_baselines3.common.utils import should_collect_more_steps
 from stable_baselines3.common.vec_env import VecCheckNan, VecEnv, VecEnvWrapper, VecNormalize, unwrap_vec_normalize
 
-from sb3_adc.common.safe_load import BUILTIN_GLOBALS, NUMPY_GLOBALS, TENSOR_GLOBALS, restricted_load
-
 #: Version of the continuation format (a file of another version is not used).
 CONTINUATION_VERSION = 1
-
-#: The globals a continuation file holds: its own classes, numpy's arrays, scalars and generator states, PyTorch's
-#: random states (tensors) and the environments' infos (dicts of numbers and arrays).
-CONTINUATION_GLOBALS: dict[str, frozenset[str]] = {
-    **BUILTIN_GLOBALS,
-    **NUMPY_GLOBALS,
-    **TENSOR_GLOBALS,
-    __name__: frozenset({"Continuation", "EpisodeRecord", "PendingStep"}),
-}
 
 #: ``VecEnv`` wrappers whose state a continuation restores (``VecCheckNan`` keeps none that matters).
 _RESTORABLE_VEC_WRAPPERS = (VecCheckNan, VecNormalize)
@@ -290,22 +280,10 @@ class Continuation:
         save_to_pkl(path, self)
 
     @classmethod
-    def load(cls, path: str, trust: bool = False) -> Continuation | None:
-        """
-        Read a continuation; ``None`` if the file holds another version's.
-
-        :param path: The file
-        :param trust: Unpickle it as SB3 unpickles its files, which can run any code (default: build only
-            :data:`CONTINUATION_GLOBALS`)
-        :raises UnsafeModelFileError: for a file that needs anything else (without ``trust``)
-        :raises Exception: whatever unpickling a damaged file raises (checked first by ``checkpoint_damage``)
-        """
-        return cls.accept(load_from_pkl(path) if trust else restricted_load(path, CONTINUATION_GLOBALS, "a continuation"))
-
-    @classmethod
     def accept(cls, loaded: object) -> Continuation | None:
         """
-        The continuation an unpickled file holds, or ``None`` if it holds another version's (or something else).
+        The continuation an unpickled file holds, or ``None`` if it holds another version's (or something else). The
+        file is read as a checkpoint's other pickles are (:func:`~sb3_adc.experiment.restore.read_checkpoint`).
 
         :param loaded: The unpickled object
         """

@@ -7,13 +7,9 @@ hyperparameters, creates the log folder, the callbacks, the environments and the
 
 - hyperparameters resolved by :mod:`sb3_adc.config` (validated, nothing ``eval``'d or imported by name);
 - resume: the Zoo's "continue from a zip" (``-i``) also loads a checkpoint of the run itself, with its replay
-  buffer, ``VecNormalize`` statistics, timestep count, exploration-noise state and the evaluations so far, and
-  its continuation (random generators, episodes in progress, the step in progress:
-  :mod:`sb3_adc.experiment.continuation`), so that the resumed run is the run it continues;
-- no code from a file: the model to continue (``-i``), its replay buffer and a checkpoint's files are read with
-  restricted unpicklers (:mod:`sb3_adc.common.safe_load`) unless the caller trusts them (``trust_model_file``);
-- checkpoints and evaluations written atomically, on the timestep count, so a resumed run evaluates and saves at
-  the timesteps an uninterrupted one would (:mod:`sb3_adc.experiment.callbacks`);
+  buffer, ``VecNormalize`` statistics, evaluations so far and its continuation (:mod:`sb3_adc.experiment.continuation`),
+  so that the resumed run is the run it continues; no file runs code unless trusted (:mod:`sb3_adc.experiment.restore`);
+- checkpoints and evaluations written atomically, on the timestep count (:mod:`sb3_adc.experiment.callbacks`);
 - a checkpoint on Ctrl-C, an error naming the first NaN or inf, and a final evaluation of its own seeds.
 
 ``sb3-adc train`` (:func:`sb3_adc.experiment.train`, :func:`~sb3_adc.experiment.resume`), the benchmark grids,
@@ -25,47 +21,37 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
-import signal
-import threading
 import warnings
 from collections import OrderedDict
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from typing import Any
 
-import numpy as np
 import yaml
 from gymnasium import spaces
 from rl_zoo3.exp_manager import ExperimentManager
 from rl_zoo3.utils import ALGOS
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
-from stable_baselines3.common.save_util import load_from_pkl
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize, sync_envs_normalization
-from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
+from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
 from tqdm import TqdmExperimentalWarning
 
-from sb3_adc.common.atomic import atomic_path, write_atomically
-from sb3_adc.common.model_files import loading_model, model_file_error, model_file_errors
-from sb3_adc.common.safe_load import REPLAY_BUFFER_GLOBALS, UnsafeModelFileError, load_objects, restricted_load
+from sb3_adc.common.atomic import write_atomically
 from sb3_adc.config import ALGORITHMS, ExperimentConfig
-from sb3_adc.experiment.callbacks import (
-    CheckpointContents,
-    CheckpointSaver,
-    EvaluationHistory,
-    PeriodicEvalCallback,
-    StopRequested,
-    read_checkpoint,
-)
+from sb3_adc.experiment.callbacks import CheckpointSaver, EvaluationHistory, PeriodicEvalCallback, StopRequested, save_model
 from sb3_adc.experiment.continuation import Continuation
 from sb3_adc.experiment.divergence import NonFiniteValue, NonFiniteWeights, TrainingDiverged, check_finite_weights
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
 from sb3_adc.experiment.evaluation import FinalEvaluation, evaluate_final
-from sb3_adc.experiment.layout import Checkpoint, DamagedFileError, RunLayout
-from sb3_adc.experiment.monitor_files import truncate_monitor
+from sb3_adc.experiment.layout import Checkpoint, RunLayout
+from sb3_adc.experiment.restore import (
+    CheckpointContents,
+    load_trained_agent,
+    read_checkpoint,
+    restore_records,
+    saved_statistics,
+)
 from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings
 
 
@@ -126,7 +112,9 @@ class RunManager(ExperimentManager):
         self.checkpoint = checkpoint
         self.extra_callbacks = list(callbacks)
         self.trust_model_file = trust_model_file
-        self._contents = contents if contents is not None and contents.checkpoint == checkpoint else None
+        if checkpoint is not None and (contents is None or contents.checkpoint != checkpoint):
+            contents = read_checkpoint(checkpoint, trust_model_file)
+        self.contents = contents if checkpoint is not None else None
         super().__init__(
             args=argparse.Namespace(**dataclasses.asdict(settings)),
             algo=settings.algo,
@@ -197,7 +185,7 @@ class RunManager(ExperimentManager):
             text = yaml.safe_dump(self.experiment.saved, sort_keys=True)
             write_atomically(self.layout.config, lambda stream: stream.write(text))
             self.settings.save(self.layout.args)
-        self._restore_records()
+        restore_records(self.layout, self.checkpoint, self.experiment.n_envs)
 
     def create_callbacks(self) -> None:
         """The periodic evaluation, then the checkpoints (a checkpoint includes its timestep's evaluation)."""
@@ -205,18 +193,9 @@ class RunManager(ExperimentManager):
         if self.eval_freq > 0:
             self.eval_env = self.create_envs(self.n_eval_envs, eval_env=True)
             history = EvaluationHistory.load(self.layout.evaluations)
-            own.append(
-                PeriodicEvalCallback(
-                    self.eval_env,
-                    self.eval_freq,
-                    history,
-                    self.n_eval_episodes,
-                    self.save_path,
-                    self.verbose,
-                    best_model_metric=self.settings.best_model_metric,
-                    eval_seed=self.seed + EVAL_SEED_OFFSET,
-                )
-            )
+            metric, seed = self.settings.best_model_metric, self.seed + EVAL_SEED_OFFSET
+            evaluation = (self.eval_env, self.eval_freq, history, self.n_eval_episodes, self.save_path, self.verbose)
+            own.append(PeriodicEvalCallback(*evaluation, best_model_metric=metric, eval_seed=seed))
         # Always there: without periodic checkpoints it still saves the one of a stop (Ctrl-C).
         self.saver.eval_env = self.eval_env
         own.append(self.saver)
@@ -247,7 +226,12 @@ class RunManager(ExperimentManager):
             append_monitor=self.checkpoint is not None,
             vec_env=self.settings.vec_env,
         )
-        self.train_env = wrap_vec_env(config, venv, training=True, statistics=self._statistics_to_load())
+        statistics = (
+            self.contents.vecnormalize
+            if self.contents is not None
+            else saved_statistics(self.trained_agent, self.settings.env_id, self.trust_model_file)
+        )
+        self.train_env = wrap_vec_env(config, venv, training=True, statistics=statistics)
         return self.train_env
 
     def _load_pretrained_agent(self, hyperparams: dict[str, Any], env: VecEnv) -> BaseAlgorithm:
@@ -260,66 +244,31 @@ class RunManager(ExperimentManager):
         ``trust_model_file`` (see the class).
         """
         algorithm_class: type[Any] = self.experiment.algorithm_class
-        if self.checkpoint is not None:
-            contents = self._checkpoint_contents()
-            with loading_model():
-                model = algorithm_class.load(
-                    self.checkpoint.model,
-                    env=env,
-                    device=self.device,
-                    tensorboard_log=self.tensorboard_log,
-                    custom_objects=contents.model_objects,
-                )
-            model.verbose = self.verbose
-            if contents.replay_buffer is not None and hasattr(model, "load_replay_buffer"):
-                _use_replay_buffer(model, contents.replay_buffer)
-            continuation = contents.continuation
-            # Another checkpoint's (a file copied by hand) would continue another point of the run.
-            if continuation is not None and continuation.timesteps == model.num_timesteps:
-                self.continuation = continuation
-            if self.continuation is None:
-                # A new random stream: the resumed part does not replay the first part's draws.
-                print(
-                    f"The checkpoint at timestep {self.checkpoint.timesteps} has no continuation (taken by a second "
-                    "Ctrl-C, saved by an older version, or of a run whose state a continuation does not cover): the "
-                    "run goes on from a new random stream."
-                )
-                model.set_random_seed(self.seed + self.checkpoint.timesteps)
-            return model
-        print(f"Continuing the training of {self.trained_agent}")
-        # The Zoo's `_load_pretrained_agent`, with the safe load: the policy is the file's, the other
-        # hyperparameters the run's.
-        hyperparams = {key: value for key, value in hyperparams.items() if key not in ("policy", "policy_kwargs")}
-        with model_file_errors(self.trained_agent, algorithm_class.__name__), loading_model():
-            model = algorithm_class.load(
-                self.trained_agent,
-                env=env,
-                seed=self.seed,
-                tensorboard_log=self.tensorboard_log,
-                verbose=self.verbose,
-                device=self.device,
-                custom_objects=load_objects(self.trained_agent, self.trust_model_file),
-                **hyperparams,
+        if self.contents is None:
+            print(f"Continuing the training of {self.trained_agent}")
+            # The Zoo's hook, with the safe load: the policy is the file's, the other hyperparameters the run's.
+            kwargs = {key: value for key, value in hyperparams.items() if key not in ("policy", "policy_kwargs")}
+            kwargs.update(
+                env=env, seed=self.seed, tensorboard_log=self.tensorboard_log, verbose=self.verbose, device=self.device
             )
-        replay_buffer, _ = self._saved_with_agent()
-        if replay_buffer is not None:
-            if not hasattr(model, "load_replay_buffer"):
-                raise ValueError(f"{type(model).__name__} has no replay buffer to load {replay_buffer} into")
-            zoo = os.path.basename(replay_buffer) == "replay_buffer.pkl"
-            print(f"{'Loading replay buffer' if zoo else 'Loading the replay buffer'} {replay_buffer}")
-            if self.trust_model_file:
-                model.load_replay_buffer(replay_buffer)
-            else:
-                _use_replay_buffer(model, _read_replay_buffer(replay_buffer))
-        model.num_timesteps = 0
+            return load_trained_agent(
+                algorithm_class, self.trained_agent, self.settings.env_id, self.trust_model_file, **kwargs
+            )
+        model = self.contents.load_model(algorithm_class, env=env, device=self.device, tensorboard_log=self.tensorboard_log)
+        model.verbose = self.verbose
+        continuation = self.contents.continuation
+        # Another checkpoint's (a file copied by hand) would continue another point of the run.
+        if continuation is not None and continuation.timesteps == model.num_timesteps:
+            self.continuation = continuation
+        else:
+            # A new random stream: the resumed part does not replay the first part's draws.
+            print(
+                f"The checkpoint at timestep {self.contents.checkpoint.timesteps} has no continuation (taken by a "
+                "second Ctrl-C, saved by an older version, or of a run whose state a continuation does not cover): the "
+                "run goes on from a new random stream."
+            )
+            model.set_random_seed(self.seed + self.contents.checkpoint.timesteps)
         return model
-
-    def _checkpoint_contents(self) -> CheckpointContents:
-        """The checkpoint's files, read once (by the check that chose the checkpoint, or here)."""
-        assert self.checkpoint is not None
-        if self._contents is None:
-            self._contents = read_checkpoint(self.checkpoint, self.trust_model_file)
-        return self._contents
 
     def _save_config(self, saved_hyperparams: dict[str, Any]) -> None:
         """Nothing more to write: ``create_log_folder`` wrote the configuration before anything could fail."""
@@ -345,7 +294,7 @@ class RunManager(ExperimentManager):
         if self.continuation is not None:
             self._continue(model)
         try:
-            with warnings.catch_warnings(), self._stop_on_ctrl_c():
+            with warnings.catch_warnings(), self.saver.stopping_on_ctrl_c():
                 # SB3's progress bar uses tqdm's rich front-end, which warns that it is experimental.
                 warnings.filterwarnings("ignore", category=TqdmExperimentalWarning)
                 model.learn(
@@ -369,7 +318,6 @@ class RunManager(ExperimentManager):
             print(f"Continue with: sb3-adc train --resume {self.save_path}")
             raise RunInterrupted(self.save_path, saved.timesteps) from None
         except (NonFiniteValue, NonFiniteWeights) as error:
-            self._close()
             raise self._diverged(model, error) from None
         finally:
             if self.eval_env is not None:
@@ -385,18 +333,12 @@ class RunManager(ExperimentManager):
         try:
             check_finite_weights(model)
         except NonFiniteWeights as error:
-            self._close()
             raise self._diverged(model, error) from None
         if self.save_freq > 0:
             checkpoints = self.layout.checkpoints()
             if not checkpoints or checkpoints[-1].timesteps != model.num_timesteps:
                 self.saver.save()
-        with atomic_path(self.layout.final_model) as temporary:
-            model.save(temporary)
-        vec_normalize = model.get_vec_normalize_env()
-        if vec_normalize is not None:
-            with atomic_path(self.layout.vecnormalize) as temporary:
-                vec_normalize.save(temporary)
+        save_model(model, self.layout.final_model, self.layout.vecnormalize)
 
     def evaluate(self, model: BaseAlgorithm) -> FinalEvaluation:
         """
@@ -427,32 +369,6 @@ class RunManager(ExperimentManager):
         self.save_trained_model(model)
         return self.evaluate(model)
 
-    # --- helpers ---
-
-    @contextmanager
-    def _stop_on_ctrl_c(self) -> Iterator[None]:
-        """
-        While training, the first Ctrl-C (SIGINT) asks the checkpoint callback to stop after the step in progress;
-        a second one raises ``KeyboardInterrupt`` at once. Signal handlers belong to the main thread: elsewhere
-        (a thread of the caller's) Ctrl-C keeps Python's behaviour.
-        """
-        if threading.current_thread() is not threading.main_thread():
-            yield
-            return
-        saver = self.saver
-
-        def request_stop(signum: int, frame: Any) -> None:
-            if saver.stop_requested:
-                raise KeyboardInterrupt
-            saver.stop_requested = True
-            print("\nCtrl-C: stopping after this step with a checkpoint (Ctrl-C again stops at once).", flush=True)
-
-        previous = signal.signal(signal.SIGINT, request_stop)
-        try:
-            yield
-        finally:
-            signal.signal(signal.SIGINT, previous)
-
     def _continue(self, model: BaseAlgorithm) -> None:
         """Restore the checkpoint's continuation: the environments where the run left them, the random generators
         as they were, the step in progress stored and trained on."""
@@ -471,6 +387,7 @@ class RunManager(ExperimentManager):
 
     def _diverged(self, model: BaseAlgorithm, error: NonFiniteValue | NonFiniteWeights) -> TrainingDiverged:
         """The error that ends a run which met a NaN or inf: where, and which checkpoint is left to resume from."""
+        self._close()
         timesteps = model.num_timesteps
         if isinstance(error, NonFiniteValue) and error.role == "training":
             timesteps += model.n_envs  # the step in progress: SB3 counts it once the environments return
@@ -478,104 +395,3 @@ class RunManager(ExperimentManager):
         source = error.source if isinstance(error, NonFiniteValue) else "weights"
         last = checkpoints[-1].timesteps if checkpoints else None
         return TrainingDiverged(self.save_path, timesteps, source, str(error), last)
-
-    def _restore_records(self) -> None:
-        """Keep the evaluations and episodes up to the checkpoint; from scratch, remove them all."""
-        layout = self.layout
-        if self.checkpoint is None:
-            for path in [layout.evaluations, layout.best_model, *layout.monitor_files()]:
-                if os.path.exists(path):
-                    os.remove(path)
-            return
-        start = self.checkpoint.timesteps
-        try:
-            history = EvaluationHistory.load(layout.evaluations)
-        except DamagedFileError as error:
-            # The evaluations up to the checkpoint cannot be recovered; the run goes on without them.
-            print(f"{error}; the evaluations before timestep {start} are lost and the history restarts after it.")
-            history = EvaluationHistory()
-        history.until(start).save(layout.evaluations)
-        for path in layout.monitor_files():
-            truncate_monitor(path, start // self.experiment.n_envs)
-
-    def _saved_with_agent(self) -> tuple[str | None, str | None]:
-        """
-        The replay buffer and ``VecNormalize`` statistics saved with the model to continue (``None`` where absent):
-        a checkpoint's own (``rl_model_{t}_steps.zip``), else the Zoo's ``replay_buffer.pkl`` beside the model and
-        ``{env_name}/vecnormalize.pkl``.
-        """
-        return saved_with(self.trained_agent, self.settings.env_id)
-
-    def _statistics_to_load(self) -> str | VecNormalize | None:
-        """
-        The ``VecNormalize`` statistics the run starts from: the checkpoint's (read with it), or those of the trained
-        agent (a file read with the restricted unpickler; unpickled, when trusted).
-        """
-        if self.checkpoint is not None:
-            return self._checkpoint_contents().vecnormalize
-        statistics = self._saved_with_agent()[1] if self.trained_agent else None
-        if statistics is not None and self.trust_model_file:
-            loaded = load_from_pkl(statistics)
-            if not isinstance(loaded, VecNormalize):
-                raise UnsafeModelFileError(f"{statistics} holds a {type(loaded).__name__}, not VecNormalize statistics")
-            return loaded
-        return statistics
-
-
-def _use_replay_buffer(model: OffPolicyAlgorithm, replay_buffer: object) -> None:
-    """
-    What SB3's ``load_replay_buffer`` (``truncate_last_traj=True``) does with the buffer it unpickled, for one read
-    already (by a restricted unpickler, or by a checkpoint's check): the model takes it, on the model's device.
-
-    :param model: The model
-    :param replay_buffer: The unpickled buffer
-    :raises ValueError: if it is not a replay buffer
-    """
-    if not isinstance(replay_buffer, ReplayBuffer):
-        raise ValueError(f"not a replay buffer: a {type(replay_buffer).__name__}")
-    model.replay_buffer = replay_buffer
-    if not hasattr(replay_buffer, "handle_timeout_termination"):  # SB3 < 2.1's buffers, as SB3 reads them
-        replay_buffer.handle_timeout_termination = False
-        replay_buffer.timeouts = np.zeros_like(replay_buffer.dones)
-    if isinstance(replay_buffer, HerReplayBuffer):  # only from a trusted file: not in the restricted allow-list
-        assert model.env is not None, "the model is loaded with its environments"
-        replay_buffer.set_env(model.env)
-        replay_buffer.truncate_last_trajectory()
-    replay_buffer.device = model.device
-
-
-def _read_replay_buffer(path: str) -> ReplayBuffer:
-    """
-    A replay buffer saved with a model to continue, read with the restricted unpickler.
-
-    :param path: The pickle
-    :raises UnsafeModelFileError: for a file that needs more than a replay buffer holds
-    :raises ModelFileError: for a damaged file, naming it
-    """
-    try:
-        replay_buffer = restricted_load(path, REPLAY_BUFFER_GLOBALS, "a replay buffer")
-    except UnsafeModelFileError:
-        raise
-    except Exception as error:  # unpickling a damaged file can raise almost anything
-        raise model_file_error(f"{path} is not a readable replay buffer: {type(error).__name__}: {error}") from error
-    if not isinstance(replay_buffer, ReplayBuffer):
-        raise model_file_error(f"{path} holds a {type(replay_buffer).__name__}, not a replay buffer")
-    return replay_buffer
-
-
-def saved_with(model_path: str, env_id: str) -> tuple[str | None, str | None]:
-    """
-    The replay buffer and ``VecNormalize`` statistics saved with a model (``None`` where absent): a checkpoint's
-    own (``rl_model_{t}_steps.zip``), else the RL Zoo's ``replay_buffer.pkl`` beside the model and
-    ``{env_name}/vecnormalize.pkl``.
-
-    :param model_path: The model file
-    :param env_id: The environment id of its run
-    """
-    layout = RunLayout(os.path.dirname(os.path.abspath(model_path)), env_id)
-    files = (os.path.join(layout.run_dir, "replay_buffer.pkl"), layout.vecnormalize)
-    for checkpoint in layout.checkpoints():
-        if os.path.abspath(checkpoint.model) == os.path.abspath(model_path):
-            files = (checkpoint.replay_buffer, checkpoint.vecnormalize)
-    replay_buffer, statistics = (path if os.path.isfile(path) else None for path in files)
-    return replay_buffer, statistics

@@ -37,11 +37,11 @@ from sb3_adc.common.spaces import ActionSpaceError
 from sb3_adc.config import ExperimentConfig, HyperparamsError, load_hyperparams, resolve_entry
 from sb3_adc.config.loader import read_yaml_file
 from sb3_adc.config.schema import check_replay_buffer
-from sb3_adc.experiment.callbacks import CheckpointContents, DamagedCheckpoint, read_checkpoint
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
 from sb3_adc.experiment.evaluation import FinalEvaluation, success_unreported
 from sb3_adc.experiment.layout import RunLayout, latest_run_dir, new_run_dir
 from sb3_adc.experiment.manager import RunManager
+from sb3_adc.experiment.restore import CheckpointContents, DamagedCheckpoint, read_checkpoint
 from sb3_adc.experiment.settings import BEST_MODEL_METRICS, SettingsError, TrainSettings
 
 #: Whether this process has received a SIGTERM handled as SIGINT (see :func:`sigterm_received`).
@@ -239,7 +239,7 @@ def find_run(log_folder: str, algo: str, env_id: str) -> str:
 
 def _latest_checkpoint(layout: RunLayout, trust: bool = False) -> CheckpointContents | None:
     """
-    The newest checkpoint that can be resumed from, read (:func:`~sb3_adc.experiment.callbacks.read_checkpoint`:
+    The newest checkpoint that can be resumed from, read (:func:`~sb3_adc.experiment.restore.read_checkpoint`:
     each file once, none running code unless ``trust``). A newer damaged one is reported and its files are renamed
     ``*.damaged`` (kept for inspection, no longer a checkpoint: pruning and later resumes pass over it); one with a
     file that would run code raises :class:`~sb3_adc.common.safe_load.UnsafeModelFileError`, the folder unchanged.

@@ -5,15 +5,11 @@ a hostile zip runs no code, and the project's own zips (ADC, SB3 TD3) load and p
 
 from __future__ import annotations
 
-import base64
 import io
-import json
 import os
 import pickle
-import zipfile
 from pathlib import Path
 
-import cloudpickle
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -22,15 +18,6 @@ from stable_baselines3 import TD3
 from sb3_adc import ADC
 from sb3_adc.common.noise import EpsilonGaussianNoise
 from sb3_adc.common.safe_load import UnsafeModelFileError, safe_objects
-
-MARKER = "SB3_ADC_SAFE_LOAD_MARKER"
-
-
-class _RunsCode:
-    """Unpickling this runs Python code (it sets an environment variable): a stand-in for any payload."""
-
-    def __reduce__(self) -> tuple[object, tuple[str]]:
-        return (exec, (f"import os; os.environ[{MARKER!r}] = 'ran'",))
 
 
 def _model(tmp_path: Path) -> Path:
@@ -50,24 +37,6 @@ def _model(tmp_path: Path) -> Path:
     path = tmp_path / "adc.zip"
     model.save(path)
     return path
-
-
-def _with_entry(path: Path, key: str, value: object, target: Path) -> Path:
-    """A copy of the zip at ``path`` whose ``data`` entry ``key`` is ``value``, cloudpickled as SB3 writes it."""
-    with zipfile.ZipFile(path) as archive:
-        entries = {name: archive.read(name) for name in archive.namelist()}
-    data = json.loads(entries["data"])
-    data[key] = {":type:": "<class 'object'>", ":serialized:": base64.b64encode(cloudpickle.dumps(value)).decode()}
-    entries["data"] = json.dumps(data).encode()
-    with zipfile.ZipFile(target, "w") as archive:
-        for name, content in entries.items():
-            archive.writestr(name, content)
-    return target
-
-
-@pytest.fixture(autouse=True)
-def _no_marker(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delenv(MARKER, raising=False)
 
 
 def test_own_zip_loads_safely_and_predicts_the_same(tmp_path: Path) -> None:
@@ -94,59 +63,51 @@ def test_sb3_zip_gives_custom_objects_without_unpickling(tmp_path: Path) -> None
 
 
 @pytest.mark.parametrize("key", ["action_noise", "lr_schedule", "an_entry_sb3_does_not_know"])
-def test_hostile_entry_is_refused_and_runs_nothing(tmp_path: Path, key: str) -> None:
-    hostile = _with_entry(_model(tmp_path), key, _RunsCode(), tmp_path / "hostile.zip")
+def test_hostile_entry_is_refused_and_runs_nothing(tmp_path: Path, key: str, hostile) -> None:
+    path = hostile.zip_with_entry(_model(tmp_path), key, hostile.payload, tmp_path / "hostile.zip")
     with pytest.raises(UnsafeModelFileError, match=rf"`{key}` needs `builtins.exec`") as error:
-        ADC.load(hostile, safe=True)
-    assert MARKER not in os.environ
+        ADC.load(path, safe=True)
+    assert hostile.marker not in os.environ
     assert "hostile.zip" in str(error.value)
     assert "custom_objects" in str(error.value)
     assert isinstance(error.value, ValueError)
     # Without `safe`, the same file runs its code on load, as SB3's does: what the option is for.
-    ADC.load(hostile)
-    assert os.environ.get(MARKER) == "ran"
+    ADC.load(path)
+    assert os.environ.get(hostile.marker) == "ran"
 
 
-def test_function_shipped_by_value_is_refused(tmp_path: Path) -> None:
-    hostile = _with_entry(_model(tmp_path), "lr_schedule", lambda _: 1e-3, tmp_path / "lambda.zip")
+def test_function_shipped_by_value_is_refused(tmp_path: Path, hostile) -> None:
+    path = hostile.zip_with_entry(_model(tmp_path), "lr_schedule", lambda _: 1e-3, tmp_path / "lambda.zip")
     with pytest.raises(UnsafeModelFileError, match="lr_schedule"):
-        ADC.load(hostile, safe=True)
+        ADC.load(path, safe=True)
 
 
-def test_custom_objects_replace_a_refused_entry(tmp_path: Path) -> None:
-    hostile = _with_entry(_model(tmp_path), "action_noise", _RunsCode(), tmp_path / "hostile.zip")
-    model = ADC.load(hostile, safe=True, custom_objects={"action_noise": None})
+def test_custom_objects_replace_a_refused_entry(tmp_path: Path, hostile) -> None:
+    path = hostile.zip_with_entry(_model(tmp_path), "action_noise", hostile.payload, tmp_path / "hostile.zip")
+    model = ADC.load(path, safe=True, custom_objects={"action_noise": None})
     assert model.action_noise is None
-    assert MARKER not in os.environ
+    assert hostile.marker not in os.environ
 
 
-def test_damaged_entry_and_file_like(tmp_path: Path) -> None:
+def test_damaged_entry_and_file_like(tmp_path: Path, hostile) -> None:
     path = _model(tmp_path)
-    with zipfile.ZipFile(path) as archive:
-        entries = {name: archive.read(name) for name in archive.namelist()}
-    data = json.loads(entries["data"])
-    data["action_space"][":serialized:"] = "not base64!"
-    entries["data"] = json.dumps(data).encode()
-    damaged = tmp_path / "damaged.zip"
-    with zipfile.ZipFile(damaged, "w") as archive:
-        for name, content in entries.items():
-            archive.writestr(name, content)
+    damaged = hostile.zip_with_serialized(path, "action_space", "not base64!", tmp_path / "damaged.zip")
     with pytest.raises(UnsafeModelFileError, match=r"action_space.*damaged"):
         ADC.load(damaged, safe=True)
     stream = io.BytesIO(path.read_bytes())
     assert ADC.load(stream, safe=True).action_space.shape == (1,)
 
 
-def test_pickle_protocol_globals_outside_the_list_are_refused() -> None:
-    raw = pickle.dumps(_RunsCode())
+def test_pickle_protocol_globals_outside_the_list_are_refused(hostile) -> None:
+    raw = pickle.dumps(hostile.payload)
     from sb3_adc.common.safe_load import _RestrictedUnpickler
 
     with pytest.raises(UnsafeModelFileError):
         _RestrictedUnpickler(io.BytesIO(raw)).load()
-    assert MARKER not in os.environ
+    assert hostile.marker not in os.environ
 
 
-def test_vec_normalize_statistics_load_without_running_code(tmp_path: Path) -> None:
+def test_vec_normalize_statistics_load_without_running_code(tmp_path: Path, hostile) -> None:
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
     from sb3_adc.common.safe_load import load_vec_normalize
@@ -158,7 +119,7 @@ def test_vec_normalize_statistics_load_without_running_code(tmp_path: Path) -> N
     saved.save(tmp_path / "vecnormalize.pkl")
     loaded = load_vec_normalize(str(tmp_path / "vecnormalize.pkl"), venv)
     np.testing.assert_array_equal(loaded.obs_rms.mean, saved.obs_rms.mean)
-    (tmp_path / "hostile.pkl").write_bytes(pickle.dumps(_RunsCode()))
+    (tmp_path / "hostile.pkl").write_bytes(pickle.dumps(hostile.payload))
     with pytest.raises(UnsafeModelFileError, match=r"builtins\.exec"):
         load_vec_normalize(str(tmp_path / "hostile.pkl"), venv)
-    assert MARKER not in os.environ
+    assert hostile.marker not in os.environ

@@ -50,6 +50,16 @@ TINY_CONFIGS = {
           policy_kwargs: "dict(net_arch=[8], value_net_arch=[4], advantage_net_arch=[4])"
           env_kwargs: {max_episode_steps: 50}
         """,
+    "sac": """
+        default:
+          n_timesteps: 300
+          policy: MlpPolicy
+          learning_starts: 100
+          batch_size: 16
+          buffer_size: 1000
+          policy_kwargs: "dict(net_arch=[8])"
+          env_kwargs: {max_episode_steps: 50}
+        """,
     "vanilla_ac": """
         default:
           n_timesteps: 300

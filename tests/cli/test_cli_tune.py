@@ -8,7 +8,8 @@ import yaml
 
 from sb3_adc.config import load_hyperparams
 from sb3_adc.experiment import FinalEvaluation, TrainSettings
-from sb3_adc.experiment.tuning import TrialEvalCallback, TuneSettings
+from sb3_adc.experiment.tuning import TuneSettings
+from sb3_adc.experiment.tuning_trials import TrialEvalCallback
 
 
 def tune_args(train_args, algo, log_folder, *extra):

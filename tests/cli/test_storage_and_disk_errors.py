@@ -7,7 +7,8 @@ import pytest
 
 from sb3_adc.common import atomic
 from sb3_adc.config import HyperparamsError
-from sb3_adc.experiment.tuning import TuneSettings, check_storage
+from sb3_adc.experiment.tuning import TuneSettings
+from sb3_adc.experiment.tuning_storage import check_storage
 
 
 def tune_args(train_args, log_folder, *extra):

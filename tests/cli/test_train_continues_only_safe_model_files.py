@@ -7,58 +7,15 @@ does. Zips written by sb3-adc and by SB3 itself still continue.
 
 from __future__ import annotations
 
-import base64
-import json
 import os
 import pickle
-import zipfile
 from pathlib import Path
 
-import cloudpickle
 import gymnasium as gym
 import pytest
 from stable_baselines3 import SAC, TD3
 
 from sb3_adc import ADC
-
-MARKER = "SB3_ADC_TRAIN_PAYLOAD_MARKER"
-
-#: A tiny configuration of SB3's own SAC (``--algo sac`` is SB3's class, unchanged).
-SAC_CONF = """\
-default:
-  n_timesteps: 300
-  policy: MlpPolicy
-  learning_starts: 100
-  batch_size: 16
-  buffer_size: 1000
-  policy_kwargs: "dict(net_arch=[8])"
-  env_kwargs: {max_episode_steps: 50}
-"""
-
-
-class _RunsCode:
-    """Unpickling this runs Python code (it sets an environment variable): a stand-in for any payload."""
-
-    def __reduce__(self) -> tuple[object, tuple[str]]:
-        return (exec, (f"import os; os.environ[{MARKER!r}] = 'ran'",))
-
-
-@pytest.fixture(autouse=True)
-def _no_marker(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delenv(MARKER, raising=False)
-
-
-def _with_entry(path: Path, key: str, value: object, target: Path) -> Path:
-    """A copy of the zip at ``path`` whose ``data`` entry ``key`` is ``value``, cloudpickled as SB3 writes it."""
-    with zipfile.ZipFile(path) as archive:
-        entries = {name: archive.read(name) for name in archive.namelist()}
-    data = json.loads(entries["data"])
-    data[key] = {":type:": "<class 'object'>", ":serialized:": base64.b64encode(cloudpickle.dumps(value)).decode()}
-    entries["data"] = json.dumps(data).encode()
-    with zipfile.ZipFile(target, "w") as archive:
-        for name, content in entries.items():
-            archive.writestr(name, content)
-    return target
 
 
 @pytest.fixture(scope="module")
@@ -85,38 +42,38 @@ def _run_dirs(logs: Path) -> list[Path]:
 
 
 @pytest.mark.parametrize("key", ["action_noise", "observation_space", "an_entry_sb3_does_not_know"])
-def test_a_hostile_model_zip_is_refused_without_running_it(cli, train_args, adc_agent, tmp_path, key):
-    hostile = _with_entry(adc_agent, key, _RunsCode(), tmp_path / "hostile.zip")
+def test_a_hostile_model_zip_is_refused_without_running_it(cli, train_args, adc_agent, tmp_path, key, hostile):
+    path = hostile.zip_with_entry(adc_agent, key, hostile.payload, tmp_path / "hostile.zip")
     logs = tmp_path / "logs"
-    status, _, err = cli(*train_args("adc", logs, "-n", 50, "-i", hostile))
+    status, _, err = cli(*train_args("adc", logs, "-n", 50, "-i", path))
     assert status == 2
-    assert str(hostile) in err
+    assert str(path) in err
     assert f"`{key}` needs `builtins.exec`" in err
     assert "--trust-model-file" in err
-    assert MARKER not in os.environ
+    assert hostile.marker not in os.environ
     assert _run_dirs(logs) == []
 
 
-def test_trust_model_file_unpickles_as_sb3_does(cli, train_args, adc_agent, tmp_path):
-    hostile = _with_entry(adc_agent, "an_entry_sb3_does_not_know", _RunsCode(), tmp_path / "hostile.zip")
-    status, out, err = cli(*train_args("adc", tmp_path / "logs", "-n", 50, "-i", hostile, "--trust-model-file"))
+def test_trust_model_file_unpickles_as_sb3_does(cli, train_args, adc_agent, tmp_path, hostile):
+    path = hostile.zip_with_entry(adc_agent, "an_entry_sb3_does_not_know", hostile.payload, tmp_path / "hostile.zip")
+    status, out, err = cli(*train_args("adc", tmp_path / "logs", "-n", 50, "-i", path, "--trust-model-file"))
     assert status == 0, err
-    assert f"Continuing the training of {hostile}" in out
-    assert os.environ.get(MARKER) == "ran"
+    assert f"Continuing the training of {path}" in out
+    assert os.environ.get(hostile.marker) == "ran"
 
 
-def test_a_hostile_replay_buffer_beside_the_model_is_refused(cli, train_args, adc_agent, tmp_path):
+def test_a_hostile_replay_buffer_beside_the_model_is_refused(cli, train_args, adc_agent, tmp_path, hostile):
     # The RL Zoo's layout: replay_buffer.pkl beside the model, loaded with it.
     (tmp_path / "agent").mkdir()
     agent = tmp_path / "agent" / "model.zip"
     agent.write_bytes(adc_agent.read_bytes())
-    (tmp_path / "agent" / "replay_buffer.pkl").write_bytes(pickle.dumps(_RunsCode()))
+    (tmp_path / "agent" / "replay_buffer.pkl").write_bytes(pickle.dumps(hostile.payload))
     status, _, err = cli(*train_args("adc", tmp_path / "logs", "-n", 50, "-i", agent))
     assert status == 2
     assert str(tmp_path / "agent" / "replay_buffer.pkl") in err
     assert "builtins.exec" in err
     assert "--trust-model-file" in err
-    assert MARKER not in os.environ
+    assert hostile.marker not in os.environ
 
 
 def test_a_zip_written_by_sb3_adc_continues(cli, train_args, adc_agent, tmp_path):
@@ -129,10 +86,9 @@ def test_a_zip_written_by_sb3_adc_continues(cli, train_args, adc_agent, tmp_path
 
 
 @pytest.mark.parametrize("algorithm", [SAC, TD3])
-def test_zips_written_by_sb3_itself_continue(cli, tmp_path, algorithm):
+def test_zips_written_by_sb3_itself_continue(cli, tiny_conf, tmp_path, algorithm):
     name = algorithm.__name__.lower()
-    conf = tmp_path / f"{name}.yml"
-    conf.write_text(SAC_CONF)
+    conf = tiny_conf / "sac.yml"  # the entry of SB3's own SAC serves TD3 too
     agent = tmp_path / f"{name}.zip"
     algorithm("MlpPolicy", gym.make("Pendulum-v1"), policy_kwargs={"net_arch": [8]}, seed=0).save(agent)
     args = ["train", "--algo", name, "--env", "Pendulum-v1", "-conf", conf, "-f", tmp_path / "logs", "-n", 50]

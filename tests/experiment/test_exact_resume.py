@@ -73,27 +73,23 @@ CASES = {
 }
 
 
-def settings(folder, case, name, **changes) -> TrainSettings:
-    algo, env_id, extra = CASES[case]
-    conf = folder / f"{case}.yml"
-    if not conf.exists():
-        conf.write_text(BASE + extra)
-    values = dict(
-        algo=algo,
-        env_id=env_id,
-        seed=3,
-        conf_file=str(conf),
-        log_folder=str(folder / name),
-        eval_freq=200,
-        eval_episodes=2,
-        save_freq=200,
-        keep_checkpoints=10,
-        final_eval_episodes=1,
-        device="cpu",
-        progress_bar=False,
-    )
-    values.update(changes)
-    return TrainSettings(**values)
+@pytest.fixture(scope="session")
+def case_settings(tiny_settings, tmp_path_factory):
+    """
+    ``make(folder, case, **changes)``: a run of a case of :data:`CASES` logging under ``folder/logs``, with an
+    evaluation (of two episodes) and a checkpoint every 200 timesteps, all kept.
+    """
+    confs = tmp_path_factory.mktemp("cases")
+
+    def make(folder, case, **changes) -> TrainSettings:
+        algo, env_id, extra = CASES[case]
+        conf = confs / f"{case}.yml"
+        if not conf.exists():
+            conf.write_text(BASE + extra)
+        values = dict(algo=algo, env_id=env_id, conf=conf, eval_freq=200, eval_episodes=2, save_freq=200, keep_checkpoints=10)
+        return tiny_settings(folder, **{**values, **changes})
+
+    return make
 
 
 def crash_after(run_dir: str, env_id: str, timesteps: int) -> None:
@@ -165,24 +161,24 @@ def assert_same_run(first: str, second: str, env_id: str) -> None:
 
 
 @pytest.fixture(scope="module")
-def uninterrupted(tmp_path_factory):
+def uninterrupted(tmp_path_factory, case_settings):
     """One uninterrupted run of each case, made on first use."""
     folder = tmp_path_factory.mktemp("uninterrupted")
     runs: dict[str, str] = {}
 
     def run(case: str) -> str:
         if case not in runs:
-            runs[case] = train(settings(folder, case, "logs")).run_dir
+            runs[case] = train(case_settings(folder, case)).run_dir
         return runs[case]
 
     return run
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_a_run_resumed_after_a_crash_is_the_uninterrupted_run(uninterrupted, tmp_path, case, capsys):
+def test_a_run_resumed_after_a_crash_is_the_uninterrupted_run(uninterrupted, tmp_path, case, capsys, case_settings):
     expected = uninterrupted(case)
     env_id = CASES[case][1]
-    run_dir = train(settings(tmp_path, case, "logs")).run_dir
+    run_dir = train(case_settings(tmp_path, case)).run_dir
     crash_after(run_dir, env_id, 200)
     capsys.readouterr()
     result = resume(run_dir)
@@ -191,11 +187,11 @@ def test_a_run_resumed_after_a_crash_is_the_uninterrupted_run(uninterrupted, tmp
     assert_same_run(expected, run_dir, env_id)
 
 
-def test_environments_in_worker_processes_resume_as_well(uninterrupted, tmp_path):
+def test_environments_in_worker_processes_resume_as_well(uninterrupted, tmp_path, case_settings):
     # The records and replays go through SubprocVecEnv's pipes; the run is the one-process run of the same seed.
     expected = uninterrupted("td3-noisy-lidar-2-envs")
     env_id = CASES["td3-noisy-lidar-2-envs"][1]
-    run_dir = train(settings(tmp_path, "td3-noisy-lidar-2-envs", "logs", vec_env="subproc")).run_dir
+    run_dir = train(case_settings(tmp_path, "td3-noisy-lidar-2-envs", vec_env="subproc")).run_dir
     crash_after(run_dir, env_id, 200)
     assert resume(run_dir).resumed_from == 200
     assert_same_run(expected, run_dir, env_id)
@@ -208,17 +204,17 @@ def test_environments_in_worker_processes_resume_as_well(uninterrupted, tmp_path
         450,  # the run's last checkpoint is taken after its last step
     ],
 )
-def test_a_finished_run_trained_further_is_the_run_of_the_larger_budget(uninterrupted, tmp_path, budget):
+def test_a_finished_run_trained_further_is_the_run_of_the_larger_budget(uninterrupted, tmp_path, budget, case_settings):
     # Nothing in the configuration depends on the budget (constant rates), so the runs may be the same.
     expected = uninterrupted("adc-pendulum")
-    run_dir = train(settings(tmp_path, "adc-pendulum", "logs", n_timesteps=budget)).run_dir
+    run_dir = train(case_settings(tmp_path, "adc-pendulum", n_timesteps=budget)).run_dir
     assert resume(run_dir, n_timesteps=600).resumed_from == budget
     assert_same_run(expected, run_dir, "Pendulum-v1")
 
 
-def test_a_checkpoint_without_continuation_goes_on_from_a_new_random_stream(uninterrupted, tmp_path, capsys):
+def test_a_checkpoint_without_continuation_goes_on_from_a_new_random_stream(uninterrupted, tmp_path, capsys, case_settings):
     expected = uninterrupted("adc-pendulum")
-    run_dir = train(settings(tmp_path, "adc-pendulum", "logs")).run_dir
+    run_dir = train(case_settings(tmp_path, "adc-pendulum")).run_dir
     crash_after(run_dir, "Pendulum-v1", 200)
     os.remove(RunLayout(run_dir, "Pendulum-v1").checkpoint(200).continuation)
     capsys.readouterr()
@@ -245,11 +241,11 @@ class CtrlCAt(BaseCallback):
         return True
 
 
-def test_ctrl_c_stops_after_the_step_and_the_run_resumes_exactly(uninterrupted, tmp_path, capsys):
+def test_ctrl_c_stops_after_the_step_and_the_run_resumes_exactly(uninterrupted, tmp_path, capsys, case_settings):
     expected = uninterrupted("adc-pendulum")
     handler = signal.getsignal(signal.SIGINT)
     with pytest.raises(RunInterrupted) as interrupted:
-        train(settings(tmp_path, "adc-pendulum", "logs"), callbacks=[CtrlCAt(250)])
+        train(case_settings(tmp_path, "adc-pendulum"), callbacks=[CtrlCAt(250)])
     assert signal.getsignal(signal.SIGINT) is handler
     # Pressed during the callbacks of step 250 (after the checkpoint callback's turn): the run stops at the next.
     assert interrupted.value.timesteps == 251
@@ -263,10 +259,10 @@ def test_ctrl_c_stops_after_the_step_and_the_run_resumes_exactly(uninterrupted, 
     assert_same_run(expected, run_dir, "Pendulum-v1")
 
 
-def test_a_second_ctrl_c_stops_at_once_without_continuation(tmp_path, capsys):
+def test_a_second_ctrl_c_stops_at_once_without_continuation(tmp_path, capsys, case_settings):
     handler = signal.getsignal(signal.SIGINT)
     with pytest.raises(RunInterrupted) as interrupted:
-        train(settings(tmp_path, "adc-pendulum", "logs"), callbacks=[CtrlCAt(250, presses=2)])
+        train(case_settings(tmp_path, "adc-pendulum"), callbacks=[CtrlCAt(250, presses=2)])
     assert signal.getsignal(signal.SIGINT) is handler
     assert interrupted.value.timesteps == 250
     assert "Interrupted: checkpoint at timestep 250 saved.\n" in capsys.readouterr().out
@@ -275,8 +271,8 @@ def test_a_second_ctrl_c_stops_at_once_without_continuation(tmp_path, capsys):
     assert not os.path.exists(checkpoint.continuation)
 
 
-def test_a_continuation_of_another_checkpoint_is_not_used(tmp_path, capsys):
-    run_dir = train(settings(tmp_path, "adc-pendulum", "logs", n_timesteps=400)).run_dir
+def test_a_continuation_of_another_checkpoint_is_not_used(tmp_path, capsys, case_settings):
+    run_dir = train(case_settings(tmp_path, "adc-pendulum", n_timesteps=400)).run_dir
     layout = RunLayout(run_dir, "Pendulum-v1")
     os.replace(layout.checkpoint(400).continuation, layout.checkpoint(200).continuation)
     crash_after(run_dir, "Pendulum-v1", 200)
@@ -285,11 +281,11 @@ def test_a_continuation_of_another_checkpoint_is_not_used(tmp_path, capsys):
     assert "has no continuation" in capsys.readouterr().out
 
 
-def test_frame_stacking_leaves_checkpoints_without_continuation(tmp_path):
+def test_frame_stacking_leaves_checkpoints_without_continuation(tmp_path, case_settings):
     # VecFrameStack keeps the last observations, which a continuation does not restore.
     conf = tmp_path / "td3.yml"
     conf.write_text(BASE.replace("n_timesteps: 600", "n_timesteps: 200") + "  frame_stack: 2\n")
-    run_dir = train(settings(tmp_path, "adc-pendulum", "logs", algo="td3", conf_file=str(conf))).run_dir
+    run_dir = train(case_settings(tmp_path, "adc-pendulum", algo="td3", conf_file=str(conf))).run_dir
     (checkpoint,) = RunLayout(run_dir, "Pendulum-v1").checkpoints()
     assert os.path.isfile(checkpoint.model)
     assert not os.path.exists(checkpoint.continuation)

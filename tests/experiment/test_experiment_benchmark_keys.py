@@ -19,27 +19,13 @@ from sb3_adc.experiment.benchmark import (
 )
 from sb3_adc.experiment.layout import RunLayout
 
-TINY_DDPG = """\
-default:
-  n_timesteps: 100
-  policy: MlpPolicy
-  learning_starts: 50
-  batch_size: 16
-  buffer_size: 200
-  gamma: 0.9
-  policy_kwargs: "dict(net_arch=[4])"
-  env_kwargs: {max_episode_steps: 50}
-"""
-
 
 @pytest.fixture(scope="module")
-def bench(tmp_path_factory):
+def bench(tmp_path_factory, tiny_conf):
     """A finished grid of ddpg on Pendulum-v1 with seeds 0 and 1 (100 steps each) and the command that made it."""
     folder = tmp_path_factory.mktemp("bench")
-    (folder / "conf").mkdir()
-    (folder / "conf" / "ddpg.yml").write_text(TINY_DDPG)
     args = ["benchmark", "--algos", "ddpg", "--envs", "Pendulum-v1", "-f", str(folder / "logs"), "--workers", "1"]
-    args += ["--conf-folder", str(folder / "conf"), "--eval-freq", "50", "--eval-episodes", "1", "--final-eval-episodes", "1"]
+    args += ["--conf-folder", str(tiny_conf), "--eval-freq", "50", "--eval-episodes", "1", "--final-eval-episodes", "1"]
     assert main([*args, "--seeds", "0", "1"]) == 0
     return folder / "logs", args
 
@@ -83,14 +69,14 @@ def test_a_smaller_grid_keeps_the_rows_of_the_other_runs(bench, capsys):
         pd.testing.assert_frame_equal(after, table)
 
 
-def test_the_same_settings_pass_the_check_and_runs_on_disk_are_found(bench):
+def test_the_same_settings_pass_the_check_and_runs_on_disk_are_found(bench, tiny_conf):
     folder, _ = bench
     settings = BenchmarkSettings(
         algos=["ddpg"],
         env_ids=["Pendulum-v1"],
         seeds=[0, 1, 2],
         log_folder=str(folder),
-        conf_folder=str(folder.parent / "conf"),
+        conf_folder=str(tiny_conf),
         eval_freq=50,
         eval_episodes=1,
         final_eval_episodes=1,
@@ -108,14 +94,14 @@ def test_the_same_settings_pass_the_check_and_runs_on_disk_are_found(bench):
     assert list(info.value.differences) == [str(folder / "ddpg" / "Pendulum-v1_seed1")]
 
 
-def test_keep_checkpoints_keeps_every_checkpoint_and_does_not_change_what_a_run_is(bench, tmp_path):
+def test_keep_checkpoints_keeps_every_checkpoint_and_does_not_change_what_a_run_is(bench, tmp_path, tiny_conf):
     folder, _ = bench
     settings = BenchmarkSettings(
         algos=["ddpg"],
         env_ids=["Pendulum-v1"],
         seeds=[0],
         log_folder=str(folder),
-        conf_folder=str(folder.parent / "conf"),
+        conf_folder=str(tiny_conf),
         eval_freq=50,
         eval_episodes=1,
         final_eval_episodes=1,
@@ -130,9 +116,8 @@ def test_keep_checkpoints_keeps_every_checkpoint_and_does_not_change_what_a_run_
     assert len(RunLayout(RunSpec("ddpg", "Pendulum-v1", 0).run_dir(str(folder)), "Pendulum-v1").checkpoints()) == 2
 
 
-def test_grids_sharing_one_pool_keep_their_own_settings_and_tables(bench, tmp_path):
-    folder, _ = bench
-    conf = str(folder.parent / "conf")
+def test_grids_sharing_one_pool_keep_their_own_settings_and_tables(tmp_path, tiny_conf):
+    conf = str(tiny_conf)
     grids = [
         BenchmarkSettings(
             algos=["ddpg"],

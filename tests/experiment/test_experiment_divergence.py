@@ -19,20 +19,6 @@ from sb3_adc.experiment.tuning import TuneSettings, tune
 
 ENV_ID = "tests/NonFiniteAt-v0"
 
-TINY_ADC = """\
-default:
-  n_timesteps: 300
-  policy: MlpPolicy
-  learning_starts: 50
-  batch_size: 16
-  buffer_size: 1000
-  noise_type: normal
-  noise_std: 0.1
-  n_intervals: 4
-  policy_kwargs: "dict(net_arch=[8], value_net_arch=[4])"
-  env_kwargs: {max_episode_steps: 50}
-"""
-
 
 class NonFiniteAt(gym.Env):
     """
@@ -68,30 +54,20 @@ if ENV_ID not in gym.registry:
     gym.register(ENV_ID, entry_point=NonFiniteAt)
 
 
-def settings(tmp_path, **env_kwargs) -> TrainSettings:
-    conf = tmp_path / "adc.yml"
-    conf.write_text(TINY_ADC)
-    return TrainSettings(
-        algo="adc",
-        env_id=ENV_ID,
-        seed=0,
-        conf_file=str(conf),
-        env_kwargs=env_kwargs,
-        log_folder=str(tmp_path / "logs"),
-        eval_freq=100,
-        eval_episodes=1,
-        save_freq=50,
-        keep_checkpoints=5,
-        final_eval_episodes=1,
-        device="cpu",
-        progress_bar=False,
-    )
+@pytest.fixture(scope="session")
+def run_settings(tiny_settings):
+    """``make(folder, **env_kwargs)``: a tiny ADC run on :data:`ENV_ID` with these keywords, a checkpoint every 50 steps."""
+
+    def make(folder, **env_kwargs) -> TrainSettings:
+        return tiny_settings(folder, env_id=ENV_ID, seed=0, env_kwargs=env_kwargs, save_freq=50, keep_checkpoints=5)
+
+    return make
 
 
 @pytest.mark.parametrize(("source", "found"), [("observation", "nan in its observation"), ("reward", "inf in its reward")])
-def test_a_non_finite_value_stops_the_run_and_keeps_the_last_good_checkpoint(tmp_path, source, found):
+def test_a_non_finite_value_stops_the_run_and_keeps_the_last_good_checkpoint(tmp_path, source, found, run_settings):
     with pytest.raises(TrainingDiverged) as info:
-        train(settings(tmp_path, at=130, source=source))
+        train(run_settings(tmp_path, at=130, source=source))
     error = info.value
     run_dir = tmp_path / "logs" / "adc" / "tests-NonFiniteAt-v0_1"
     assert (error.timesteps, error.source, error.last_checkpoint) == (130, source, 100)
@@ -108,10 +84,9 @@ def test_a_non_finite_value_stops_the_run_and_keeps_the_last_good_checkpoint(tmp
     assert all(bool(th.isfinite(parameter).all()) for parameter in model.policy.parameters())
 
 
-def test_the_cli_exits_1_with_the_message_and_resume_continues_from_the_good_checkpoint(tmp_path, capsys):
-    conf = tmp_path / "adc.yml"
-    conf.write_text(TINY_ADC)
-    args = ["train", "--algo", "adc", "--env", ENV_ID, "-conf", str(conf), "-f", str(tmp_path / "logs"), "--seed", "0"]
+def test_the_cli_exits_1_with_the_message_and_resume_continues_from_the_good_checkpoint(tmp_path, capsys, tiny_conf):
+    conf = str(tiny_conf / "adc.yml")
+    args = ["train", "--algo", "adc", "--env", ENV_ID, "-conf", conf, "-f", str(tmp_path / "logs"), "--seed", "0"]
     args += ["--eval-freq", "100", "--eval-episodes", "1", "--final-eval-episodes", "1", "--no-progress-bar"]
     args += ["--env-kwargs", "at:130", "--device", "cpu"]
     assert main(args) == 1
@@ -188,9 +163,9 @@ def test_a_diverging_trial_is_pruned_not_an_error_of_the_study(tmp_path):
     assert trial_states(settings) == ["PRUNED"]
 
 
-def test_critic_diagnostics_evaluate_in_a_checked_run(tmp_path):
+def test_critic_diagnostics_evaluate_in_a_checked_run(tmp_path, run_settings):
     # The diagnostics callback builds a plain evaluation env; it must not be synced against the checked training env.
-    run = settings(tmp_path)
+    run = run_settings(tmp_path)
     run.overrides = {
         "callback": {
             "sb3_adc.diagnostics.CriticDiagnosticsCallback": {
@@ -209,8 +184,8 @@ def test_critic_diagnostics_evaluate_in_a_checked_run(tmp_path):
     assert list(history["timesteps"]) == [100, 200]
 
 
-def test_enjoy_stops_at_a_nan_with_exit_status_1(tmp_path, capsys):
-    result = train(settings(tmp_path, at=10**6))
+def test_enjoy_stops_at_a_nan_with_exit_status_1(tmp_path, capsys, run_settings):
+    result = train(run_settings(tmp_path, at=10**6))
     config = tmp_path / "logs" / "adc" / "tests-NonFiniteAt-v0_1" / "tests-NonFiniteAt-v0" / "config.yml"
     config.write_text(config.read_text().replace("at: 1000000", "at: 20"))
     assert main(["enjoy", "--run-dir", result.run_dir, "--env", ENV_ID, "-n", "1"]) == 1

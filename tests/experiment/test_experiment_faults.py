@@ -14,24 +14,10 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_adc import ADC
 from sb3_adc.common.model_files import LOADED_N_STEP_WARNING, loading_model
-from sb3_adc.experiment import RunInterrupted, TrainSettings, resume, train
-from sb3_adc.experiment.callbacks import EvaluationHistory, checkpoint_damage
+from sb3_adc.experiment import RunInterrupted, resume, train
+from sb3_adc.experiment.callbacks import EvaluationHistory
 from sb3_adc.experiment.layout import DamagedFileError, RunLayout
-
-TINY_ADC = """\
-default:
-  n_timesteps: 300
-  policy: MlpPolicy
-  learning_starts: 50
-  batch_size: 16
-  buffer_size: 1000
-  gamma: 0.9
-  noise_type: normal
-  noise_std: 0.1
-  n_intervals: 4
-  policy_kwargs: "dict(net_arch=[8], value_net_arch=[4])"
-  env_kwargs: {max_episode_steps: 50}
-"""
+from sb3_adc.experiment.restore import checkpoint_damage
 
 
 class InterruptAt(BaseCallback):
@@ -47,30 +33,8 @@ class InterruptAt(BaseCallback):
         return True
 
 
-def tiny_settings(folder, **changes) -> TrainSettings:
-    conf = folder / "adc.yml"
-    if not conf.exists():
-        conf.write_text(TINY_ADC)
-    values = dict(
-        algo="adc",
-        env_id="Pendulum-v1",
-        seed=3,
-        conf_file=str(conf),
-        log_folder=str(folder / "logs"),
-        eval_freq=100,
-        eval_episodes=1,
-        save_freq=100,
-        keep_checkpoints=3,
-        final_eval_episodes=1,
-        device="cpu",
-        progress_bar=False,
-    )
-    values.update(changes)
-    return TrainSettings(**values)
-
-
 @pytest.fixture(scope="module")
-def interrupted(tmp_path_factory):
+def interrupted(tmp_path_factory, tiny_settings):
     """A run interrupted at timestep 250: checkpoints at 100, 200 and 250, evaluations at 100 and 200."""
     folder = tmp_path_factory.mktemp("interrupted")
     with pytest.raises(RunInterrupted):
@@ -184,7 +148,7 @@ def test_a_partial_last_monitor_line_is_dropped(run_dir):
     assert -123.4 not in list(episodes["r"])
 
 
-def test_a_crash_while_writing_evaluations_keeps_the_previous_file(tmp_path, monkeypatch):
+def test_a_crash_while_writing_evaluations_keeps_the_previous_file(tmp_path, monkeypatch, tiny_settings):
     """SB3's EvalCallback writes evaluations.npz in place; a crash in the second write must not damage it."""
     real_savez = np.savez
     calls = []
@@ -222,7 +186,7 @@ default:
 """
 
 
-def test_a_resumed_n_step_run_keeps_its_returns_without_sb3s_warning(tmp_path):
+def test_a_resumed_n_step_run_keeps_its_returns_without_sb3s_warning(tmp_path, tiny_settings):
     # The checkpoint's model is loaded with its NStepReplayBuffer: SB3 warns that n_steps "is ignored"; it is not.
     conf = tmp_path / "td3.yml"
     conf.write_text(TINY_TD3_N_STEP)

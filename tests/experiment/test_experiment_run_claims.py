@@ -12,34 +12,16 @@ from sb3_adc.common.atomic import atomic_path, write_atomically
 from sb3_adc.experiment import TrainSettings, train
 from sb3_adc.experiment.layout import new_run_dir
 
-TINY_DDPG = """\
-default:
-  n_timesteps: 100
-  policy: MlpPolicy
-  learning_starts: 50
-  batch_size: 16
-  buffer_size: 200
-  policy_kwargs: "dict(net_arch=[4])"
-  env_kwargs: {max_episode_steps: 50}
-"""
 
+@pytest.fixture
+def ddpg_settings(tmp_path, tiny_settings):
+    """``make(**changes)``: a tiny DDPG run on Pendulum-v1 logging under ``tmp_path/logs``, without evaluations or
+    checkpoints."""
 
-def tiny_settings(tmp_path, **kwargs) -> TrainSettings:
-    """A tiny DDPG run on Pendulum-v1 logging under ``tmp_path/logs``, without evaluations or checkpoints."""
-    conf = tmp_path / "ddpg.yml"
-    conf.write_text(TINY_DDPG)
-    return TrainSettings(
-        algo="ddpg",
-        env_id="Pendulum-v1",
-        conf_file=str(conf),
-        log_folder=str(tmp_path / "logs"),
-        eval_freq=0,
-        save_freq=0,
-        final_eval_episodes=1,
-        device="cpu",
-        progress_bar=False,
-        **kwargs,
-    )
+    def make(**changes) -> TrainSettings:
+        return tiny_settings(tmp_path, "ddpg", algo="ddpg", seed=0, eval_freq=0, save_freq=0, keep_checkpoints=2, **changes)
+
+    return make
 
 
 def test_racing_threads_each_claim_a_different_run_folder(tmp_path):
@@ -62,8 +44,8 @@ def test_racing_threads_each_claim_a_different_run_folder(tmp_path):
     assert all(os.path.isdir(path) for path in claimed)
 
 
-def test_a_run_that_loses_the_race_trains_in_the_next_folder_and_says_which(tmp_path, monkeypatch, capsys):
-    settings = tiny_settings(tmp_path)
+def test_a_run_that_loses_the_race_trains_in_the_next_folder_and_says_which(tmp_path, monkeypatch, capsys, ddpg_settings):
+    settings = ddpg_settings()
     # Another run claims Pendulum-v1_1 between this run's listing of the folder and its claim.
     winner = tmp_path / "logs" / "ddpg" / "Pendulum-v1_1"
     real_run_ids = layout_module.run_ids
@@ -86,14 +68,14 @@ def test_a_run_that_loses_the_race_trains_in_the_next_folder_and_says_which(tmp_
 
 
 @pytest.mark.parametrize("verbose", [0, 1])
-def test_a_run_writes_nothing_in_the_temporary_directory(tmp_path, monkeypatch, capsys, verbose):
+def test_a_run_writes_nothing_in_the_temporary_directory(tmp_path, monkeypatch, capsys, verbose, ddpg_settings):
     """SB3's default logger makes an empty ``SB3-<date>`` folder in the temporary directory for every model."""
     monkeypatch.delenv("SB3_LOGDIR", raising=False)
     scratch = tmp_path / "tmp"
     scratch.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(scratch))
     # Four episodes of 50 steps: SB3 logs every fourth episode.
-    settings = tiny_settings(tmp_path, verbose=verbose, n_timesteps=200)
+    settings = ddpg_settings(verbose=verbose, n_timesteps=200)
     train(settings)
     assert list(scratch.glob("SB3-*")) == []
     # The training logs still go to the console when asked for.

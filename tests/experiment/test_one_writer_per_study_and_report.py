@@ -14,9 +14,10 @@ import pytest
 
 import sb3_adc.experiment.summary as summary
 from sb3_adc.cli import main
-from sb3_adc.experiment import tuning
+from sb3_adc.experiment import tuning_trials
 from sb3_adc.experiment.layout import FolderLock, RunLocked
-from sb3_adc.experiment.tuning import TuneSettings, study_lock, tune
+from sb3_adc.experiment.tuning import tune
+from sb3_adc.experiment.tuning_storage import TUNING_ACTIVITY, study_lock
 
 EXPERIMENT = """
 description: probe
@@ -71,36 +72,21 @@ def test_report_holds_the_results_folder_lock_while_it_writes(tmp_path, monkeypa
         pass
 
 
-def _study(tmp_path: Path, **changes: Any) -> TuneSettings:
-    """A study of DDPG on Pendulum with tiny networks and budgets: one trial of one seed of 200 steps."""
-    settings: dict[str, Any] = {
-        "algo": "ddpg",
-        "env_id": "Pendulum-v1",
-        "n_trials": 1,
-        "n_timesteps": 200,
-        "seeds": (0,),
-        "n_evaluations": 1,
-        "eval_episodes": 1,
-        "final_eval_episodes": 1,
-        "pruner": "none",
-        "log_folder": str(tmp_path),
-        "overrides": {"learning_starts": 100, "policy_kwargs": {"net_arch": [4]}, "batch_size": 8},
-        "device": "cpu",
-    }
-    return TuneSettings(**{**settings, **changes})
+#: A tiny study of one run (one seed, one evaluation): the quickest.
+ONE_RUN: dict[str, Any] = {"seeds": (0,), "n_evaluations": 1}
 
 
-def test_a_second_tuning_of_a_study_fails_at_once(tmp_path):
-    settings = _study(tmp_path)
-    with FolderLock(settings.study_dir, tuning.TUNING_ACTIVITY), pytest.raises(RunLocked, match="tuning its study"):
+def test_a_second_tuning_of_a_study_fails_at_once(tiny_study):
+    settings = tiny_study(**ONE_RUN)
+    with FolderLock(settings.study_dir, TUNING_ACTIVITY), pytest.raises(RunLocked, match="tuning its study"):
         tune(settings)
     assert not (Path(settings.study_dir) / "study.log").exists()  # nothing written by the second command
 
 
-def test_the_cli_exits_2_for_a_study_in_use(tmp_path, capsys):
-    settings = _study(tmp_path)
+def test_the_cli_exits_2_for_a_study_in_use(tmp_path, capsys, tiny_study):
+    settings = tiny_study(**ONE_RUN)
     args = ["train", "--algo", "ddpg", "--env", "Pendulum-v1", "-f", str(tmp_path), "-optimize", "--n-trials", "1"]
-    with FolderLock(settings.study_dir, tuning.TUNING_ACTIVITY):
+    with FolderLock(settings.study_dir, TUNING_ACTIVITY):
         assert main(args) == 2
     err = capsys.readouterr().err
     assert f"{settings.study_dir} is in use" in err
@@ -108,9 +94,9 @@ def test_the_cli_exits_2_for_a_study_in_use(tmp_path, capsys):
     assert not (Path(settings.study_dir) / "study.log").exists()
 
 
-def test_tuning_holds_the_study_lock_while_its_trials_train(tmp_path, monkeypatch):
-    settings = _study(tmp_path)
-    real_train = tuning.train
+def test_tuning_holds_the_study_lock_while_its_trials_train(monkeypatch, tiny_study):
+    settings = tiny_study(**ONE_RUN)
+    real_train = tuning_trials.train
     seen: list[bool] = []
 
     def train(*args: Any, **kwargs: Any) -> Any:
@@ -119,16 +105,16 @@ def test_tuning_holds_the_study_lock_while_its_trials_train(tmp_path, monkeypatc
         seen.append(True)
         return real_train(*args, **kwargs)
 
-    monkeypatch.setattr(tuning, "train", train)
+    monkeypatch.setattr(tuning_trials, "train", train)
     assert tune(settings).n_finished == 1
     assert seen == [True]
     with FolderLock(settings.study_dir):  # released when the study ends
         pass
 
 
-def test_a_database_study_is_shared_without_a_lock(tmp_path):
-    database = _study(tmp_path, storage=f"sqlite:///{tmp_path / 'study.db'}")
-    journal = _study(tmp_path, storage=str(tmp_path / "shared.log"))
+def test_a_database_study_is_shared_without_a_lock(tmp_path, tiny_study):
+    database = tiny_study(**ONE_RUN, storage=f"sqlite:///{tmp_path / 'study.db'}")
+    journal = tiny_study(**ONE_RUN, storage=str(tmp_path / "shared.log"))
     assert not isinstance(study_lock(database), FolderLock)
     lock = study_lock(journal)
     assert isinstance(lock, FolderLock)

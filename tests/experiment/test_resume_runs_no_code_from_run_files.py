@@ -16,6 +16,7 @@ import pickle
 import shutil
 import zipfile
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,31 +25,14 @@ import pytest
 import torch as th
 
 import sb3_adc.common.safe_load as safe_load
-import sb3_adc.experiment.callbacks as callbacks
-from sb3_adc.common.safe_load import UnsafeModelFileError
+import sb3_adc.experiment.restore as restore
+from sb3_adc.common.safe_load import CONTINUATION_GLOBALS, UnsafeModelFileError
 from sb3_adc.experiment import TrainSettings, resume, train
-from sb3_adc.experiment.callbacks import checkpoint_damage, read_checkpoint
-from sb3_adc.experiment.continuation import CONTINUATION_GLOBALS, Continuation
+from sb3_adc.experiment.continuation import Continuation
 from sb3_adc.experiment.layout import RunLayout
+from sb3_adc.experiment.restore import checkpoint_damage, read_checkpoint
 
 MARKER = "SB3_ADC_RUN_FILE_PAYLOAD_MARKER"
-
-#: ADC with VecNormalize: a checkpoint holds all four kinds of file.
-TINY = """\
-default:
-  n_timesteps: 300
-  policy: MlpPolicy
-  learning_starts: 50
-  batch_size: 16
-  buffer_size: 1000
-  gamma: 0.9
-  noise_type: normal
-  noise_std: 0.1
-  n_intervals: 4
-  normalize: true
-  policy_kwargs: "dict(net_arch=[8], value_net_arch=[4])"
-  env_kwargs: {max_episode_steps: 50}
-"""
 
 
 class _RunsCode:
@@ -74,26 +58,11 @@ def _no_marker(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 @pytest.fixture(scope="module")
-def crashed(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def crashed(tmp_path_factory: pytest.TempPathFactory, tiny_settings: Callable[..., TrainSettings]) -> Path:
     """A run left as a crash after its checkpoint at timestep 200 leaves it (checkpoints at 100 and 200)."""
     folder = tmp_path_factory.mktemp("crashed")
-    conf = folder / "adc.yml"
-    conf.write_text(TINY)
-    settings = TrainSettings(
-        algo="adc",
-        env_id="Pendulum-v1",
-        seed=3,
-        conf_file=str(conf),
-        log_folder=str(folder / "logs"),
-        eval_freq=100,
-        eval_episodes=1,
-        save_freq=100,
-        keep_checkpoints=5,
-        final_eval_episodes=1,
-        device="cpu",
-        progress_bar=False,
-    )
-    run_dir = train(settings).run_dir
+    # With VecNormalize: a checkpoint holds all four kinds of file.
+    run_dir = train(tiny_settings(folder, "adc-normalized", keep_checkpoints=5)).run_dir
     layout = RunLayout(run_dir, "Pendulum-v1")
     for checkpoint in layout.checkpoints():
         if checkpoint.timesteps > 200:
@@ -217,15 +186,10 @@ def test_a_resume_reads_each_file_of_its_checkpoint_once(run_dir, monkeypatch, c
     def unrestricted(*args: Any, **kwargs: Any) -> Any:
         raise AssertionError("a run file was unpickled without restriction")
 
-    import sb3_adc.experiment.continuation as continuation
-    import sb3_adc.experiment.manager as manager
-
-    for module in (safe_load, callbacks, manager, continuation):
-        if hasattr(module, "restricted_load"):
-            monkeypatch.setattr(module, "restricted_load", counted_restricted)
-    monkeypatch.setattr(callbacks, "safe_objects", counted_safe_objects)
-    for module in (callbacks, continuation, manager):
-        monkeypatch.setattr(module, "load_from_pkl", unrestricted)
+    for module in (safe_load, restore):
+        monkeypatch.setattr(module, "restricted_load", counted_restricted)
+    monkeypatch.setattr(restore, "safe_objects", counted_safe_objects)
+    monkeypatch.setattr(restore, "load_from_pkl", unrestricted)
     monkeypatch.setattr("stable_baselines3.common.off_policy_algorithm.load_from_pkl", unrestricted)
     result = resume(str(run_dir))
     assert result.resumed_from == 200

@@ -3,29 +3,12 @@
 import optuna
 import pytest
 
-from sb3_adc.experiment.tuning import TuneSettings, repair_journal, tune
+from sb3_adc.experiment.tuning import tune
+from sb3_adc.experiment.tuning_storage import repair_journal
 
 
-def tiny_study(tmp_path) -> TuneSettings:
-    """DDPG on Pendulum with a tiny network: one trial of one seed of 200 steps."""
-    return TuneSettings(
-        algo="ddpg",
-        env_id="Pendulum-v1",
-        n_trials=1,
-        n_timesteps=200,
-        seeds=(0,),
-        n_evaluations=2,
-        eval_episodes=1,
-        final_eval_episodes=1,
-        pruner="none",
-        log_folder=str(tmp_path),
-        overrides={"learning_starts": 100, "policy_kwargs": {"net_arch": [4]}, "batch_size": 8},
-        device="cpu",
-    )
-
-
-def test_study_resumes_after_a_torn_last_line(tmp_path):
-    settings = tiny_study(tmp_path)
+def test_study_resumes_after_a_torn_last_line(tiny_study):
+    settings = tiny_study(seeds=(0,))
     tune(settings)
     path = settings.storage_url()
     with open(path, "rb") as stream:

@@ -14,26 +14,8 @@ from sb3_adc.config.loader import packaged_hyperparams_file, read_hyperparams_fi
 from sb3_adc.experiment import tuning
 from sb3_adc.experiment.manager import RunInterrupted
 from sb3_adc.experiment.samplers import SAMPLERS, Space
-from sb3_adc.experiment.tuning import TuneSettings, trial_entry, tune
-
-
-def tiny_study(tmp_path, **changes) -> TuneSettings:
-    """A study of DDPG on Pendulum with tiny networks and budgets: one trial of two seeds of 200 steps."""
-    settings = {
-        "algo": "ddpg",
-        "env_id": "Pendulum-v1",
-        "n_trials": 1,
-        "n_timesteps": 200,
-        "seeds": (0, 1),
-        "n_evaluations": 2,
-        "eval_episodes": 1,
-        "final_eval_episodes": 1,
-        "pruner": "none",
-        "log_folder": str(tmp_path),
-        "overrides": {"learning_starts": 100, "policy_kwargs": {"net_arch": [4]}, "batch_size": 8},
-        "device": "cpu",
-    }
-    return TuneSettings(**{**settings, **changes})
+from sb3_adc.experiment.tuning import TuneSettings, tune
+from sb3_adc.experiment.tuning_trials import TrialEvalCallback, trial_entry
 
 
 def journal(settings: TuneSettings) -> optuna.storages.JournalStorage:
@@ -42,17 +24,17 @@ def journal(settings: TuneSettings) -> optuna.storages.JournalStorage:
 
 def tune_interrupted(settings: TuneSettings, monkeypatch, when) -> None:
     """Fault injection: tune until a trial's evaluation callback, at a step where ``when(callback)``, gets Ctrl-C."""
-    on_step = tuning.TrialEvalCallback._on_step
+    on_step = TrialEvalCallback._on_step
 
     def interrupt(callback):
         if when(callback):
             raise KeyboardInterrupt
         return on_step(callback)
 
-    monkeypatch.setattr(tuning.TrialEvalCallback, "_on_step", interrupt)
+    monkeypatch.setattr(TrialEvalCallback, "_on_step", interrupt)
     with pytest.raises(RunInterrupted):
         tune(settings)
-    monkeypatch.setattr(tuning.TrialEvalCallback, "_on_step", on_step)
+    monkeypatch.setattr(TrialEvalCallback, "_on_step", on_step)
 
 
 @pytest.mark.parametrize("algo", sorted(SAMPLERS))
@@ -93,9 +75,9 @@ def test_epsilon_keys_dropped_with_another_noise():
     assert entry == {"noise_type": "normal", "gamma": 0.9}
 
 
-def test_trial_of_a_dead_worker_is_failed_and_continued(tmp_path):
+def test_trial_of_a_dead_worker_is_failed_and_continued(tiny_study):
     """A trial left running by a killed worker of this machine is marked failed and continued; the budget is met."""
-    settings = tiny_study(tmp_path, n_trials=2, seeds=(0,), n_evaluations=1, pruner="median")
+    settings = tiny_study(n_trials=2, seeds=(0,), n_evaluations=1, pruner="median")
     os.makedirs(settings.study_dir)
     storage = journal(settings)
     study = optuna.create_study(storage=storage, study_name=settings.name, direction="maximize")
@@ -113,13 +95,13 @@ def test_trial_of_a_dead_worker_is_failed_and_continued(tmp_path):
     assert continuation.user_attrs["trial_dir"] == f"trial_{continuation.number}"
 
 
-def test_interrupted_trial_keeps_its_runs(tmp_path, monkeypatch, capsys):
+def test_interrupted_trial_keeps_its_runs(tmp_path, monkeypatch, capsys, tiny_study):
     """
     Fault injection: Ctrl-C during the second seed of a trial. The next invocation continues the trial with the same
     hyperparameters: the finished seed is not trained again, the other resumes from its checkpoint, and the pruner
     sees every evaluation once.
     """
-    settings = tiny_study(tmp_path)
+    settings = tiny_study()
     tune_interrupted(settings, monkeypatch, lambda callback: callback.step_offset == 2 and callback.num_timesteps == 150)
     trial_dir = tmp_path / "tuning" / settings.name / "trial_0"
     first_seed = trial_dir / "seed_0" / "Pendulum-v1.zip"
@@ -149,9 +131,9 @@ def test_interrupted_trial_keeps_its_runs(tmp_path, monkeypatch, capsys):
     assert not list((trial_dir / "seed_1").glob("rl_model_*")), "a finished trial's checkpoints are removed"
 
 
-def test_continuation_with_a_changed_entry_starts_afresh(tmp_path, monkeypatch):
+def test_continuation_with_a_changed_entry_starts_afresh(monkeypatch, tiny_study):
     """Runs of an interrupted trial are reused only for the same entry: new -params make the continuation retrain."""
-    settings = tiny_study(tmp_path, seeds=(0,))
+    settings = tiny_study(seeds=(0,))
     tune_interrupted(settings, monkeypatch, lambda callback: callback.num_timesteps == 150)
     settings.overrides["batch_size"] = 16
     tune(settings)
@@ -162,8 +144,8 @@ def test_continuation_with_a_changed_entry_starts_afresh(tmp_path, monkeypatch):
     assert continuation.state == optuna.trial.TrialState.COMPLETE
 
 
-def test_reports_every_evaluation_of_every_seed(tmp_path):
-    settings = tiny_study(tmp_path)
+def test_reports_every_evaluation_of_every_seed(tiny_study):
+    settings = tiny_study()
     tune(settings)
     storage = journal(settings)
     (trial,) = optuna.load_study(study_name=settings.name, storage=storage).trials
@@ -171,9 +153,9 @@ def test_reports_every_evaluation_of_every_seed(tmp_path):
     assert trial.value == pytest.approx((trial.user_attrs["return_seed_0"] + trial.user_attrs["return_seed_1"]) / 2)
 
 
-def test_workers_take_the_trials_left_one_at_a_time(tmp_path):
+def test_workers_take_the_trials_left_one_at_a_time(tiny_study):
     """A worker runs trials while the shared count has some left, so a free worker takes the next one."""
-    settings = tiny_study(tmp_path, seeds=(0,), n_evaluations=1)
+    settings = tiny_study(seeds=(0,), n_evaluations=1)
     os.makedirs(settings.study_dir)
     tickets = multiprocessing.get_context("spawn").Value("i", 2)
     base = tuning._base_entry(settings)
