@@ -85,7 +85,8 @@ class ADC(CheckedModelFiles, TD3WithCriticLearningRate, ADCUpdate):
         unit like ``(5, "step")`` or ``(2, "episode")``.
     :param gradient_steps: How many gradient steps to do after each rollout (see ``train_freq``).
         Set to ``-1`` means to do as many gradient steps as steps done in the environment during the rollout.
-    :param action_noise: the action noise type (None by default);
+    :param action_noise: the action noise type (None by default, as SB3's: at the defaults the paper's noise was
+        level with none on Pendulum-v1, see the ADC page's "Default exploration");
         :class:`~sb3_adc.common.noise.EpsilonGaussianNoise` gives the paper's epsilon-gated exploration
     :param replay_buffer_class: Replay buffer class to use (for instance ``HerReplayBuffer``).
         If ``None``, it will be automatically selected.
