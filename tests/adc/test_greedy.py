@@ -12,7 +12,6 @@ from stable_baselines3.common.utils import ConstantSchedule
 
 from sb3_adc import ADC
 from sb3_adc.adc.policies import CRITIC_DESIGNS, GREEDY_CRITIC_DESIGNS, ADCPolicy
-from sb3_adc.config import HyperparamsError, load_hyperparams, parse_overrides
 
 N_INTERVALS = 5
 CENTRES = th.tensor([-0.8, -0.4, 0.0, 0.4, 0.8])
@@ -285,28 +284,3 @@ def test_save_and_load_keep_the_options(tmp_path):
     assert (loaded.target_greedy_mix, loaded.actor_greedy_weight) == (0.25, 0.125)
     batch = transitions(model)
     th.testing.assert_close(loaded.target_q_values(batch), model.target_q_values(batch))
-
-
-def test_files_saved_before_the_options_load_without_them(tmp_path):
-    model = make_model()
-    del model.target_greedy_mix, model.actor_greedy_weight  # as in a file saved before they existed
-    model.save(tmp_path / "old.zip")
-    loaded = ADC.load(tmp_path / "old.zip", env=two_dimensional_env())
-    assert (loaded.target_greedy_mix, loaded.actor_greedy_weight) == (0.0, 0.0)
-
-
-def test_pendulum_learns_with_both_options():
-    model = ADC("MlpPolicy", "Pendulum-v1", target_greedy_mix=0.5, actor_greedy_weight=0.1, seed=0).learn(300)
-    assert model._n_updates == 200
-    assert all(th.isfinite(p).all() for p in model.policy.parameters())
-
-
-def test_hyperparameter_entries_accept_the_options():
-    overrides = parse_overrides(["target_greedy_mix:0.5", "actor_greedy_weight:0.1"])  # -params, as the CLI reads it
-    config = load_hyperparams("adc", "Pendulum-v1", None, overrides, 1000)
-    assert config.model_kwargs["target_greedy_mix"] == 0.5
-    assert config.model_kwargs["actor_greedy_weight"] == 0.1
-    with pytest.raises(HyperparamsError, match=r"`target_greedy_mix` must be a number in \[0, 1\], got 2"):
-        load_hyperparams("adc", "Pendulum-v1", None, {"target_greedy_mix": 2}, 1000)
-    with pytest.raises(HyperparamsError, match="actor_greedy_weight"):
-        load_hyperparams("adc", "Pendulum-v1", None, {"actor_greedy_weight": -0.5}, 1000)

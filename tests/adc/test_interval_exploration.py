@@ -15,7 +15,6 @@ from sb3_adc.adc.exploration import boltzmann_interval_draw, explore_from_advant
 from sb3_adc.adc.intervals import UniformIntervalPartition
 from sb3_adc.adc.policies import CRITIC_DESIGNS, GREEDY_CRITIC_DESIGNS
 from sb3_adc.common.noise import EpsilonGaussianNoise
-from sb3_adc.config import HyperparamsError, load_hyperparams, parse_overrides
 
 N_INTERVALS = 5
 EDGES = UniformIntervalPartition(N_INTERVALS).edges  # -1, -0.6, -0.2, 0.2, 0.6, 1
@@ -285,35 +284,3 @@ def test_exploration_needs_a_one_pass_design(design):
     critic = ADC("MlpPolicy", "Pendulum-v1", policy_kwargs=policy_kwargs).critic
     with pytest.raises(ValueError, match=r"`interval_advantages` needs critic_design in \('legendre',\)"):
         critic.interval_advantages(th.zeros(1, 3))
-
-
-def test_save_and_load_keep_the_options(tmp_path):
-    model = make_model(interval_exploration=0.25, interval_temperature=0.125)
-    model.save(tmp_path / "explore.zip")
-    loaded = ADC.load(tmp_path / "explore.zip", env=ThreeDimensionalEnv())
-    assert (loaded.interval_exploration, loaded.interval_temperature) == (0.25, 0.125)
-
-
-def test_files_saved_before_the_options_load_without_them(tmp_path):
-    model = make_model()
-    del model.interval_exploration, model.interval_temperature  # as in a file saved before they existed
-    model.save(tmp_path / "old.zip")
-    loaded = ADC.load(tmp_path / "old.zip", env=ThreeDimensionalEnv())
-    assert (loaded.interval_exploration, loaded.interval_temperature) == (0.0, 1.0)
-
-
-def test_pendulum_learns_with_exploration_from_the_advantages():
-    model = ADC("MlpPolicy", "Pendulum-v1", interval_exploration=0.2, interval_temperature=0.5, seed=0).learn(300)
-    assert model._n_updates == 200
-    assert all(th.isfinite(p).all() for p in model.policy.parameters())
-
-
-def test_hyperparameter_entries_accept_the_options():
-    overrides = parse_overrides(["interval_exploration:0.2", "interval_temperature:0.5"])  # -params, as the CLI reads it
-    config = load_hyperparams("adc", "Pendulum-v1", None, overrides, 1000)
-    assert config.model_kwargs["interval_exploration"] == 0.2
-    assert config.model_kwargs["interval_temperature"] == 0.5
-    with pytest.raises(HyperparamsError, match=r"`interval_exploration` must be a number in \[0, 1\], got 2"):
-        load_hyperparams("adc", "Pendulum-v1", None, {"interval_exploration": 2}, 1000)
-    with pytest.raises(HyperparamsError, match="interval_temperature"):
-        load_hyperparams("adc", "Pendulum-v1", None, {"interval_temperature": 0}, 1000)
