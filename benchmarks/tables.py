@@ -48,7 +48,7 @@ LIDAR = "success on 100 held-out layouts (300,000 steps)"
 GRIDS = "lidar_course_v1/test_summary.csv"
 CLEAN, NOISY = "sb3_adc/LidarObstacleCourse-v1", "sb3_adc/LidarObstacleCourseNoisy-v1"
 TASKS = (
-    # TD3's and SAC's shipped Noisy Pendulum entries are the winners of the equal-budget tuning (fair_tuning.py).
+    # TD3's and SAC's shipped Noisy Pendulum entries are the winners of the equal-budget tuning (experiments/fair_tuning.yml).
     Task(
         "Noisy Pendulum",
         "final return (20,000 steps)",

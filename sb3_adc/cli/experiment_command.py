@@ -7,10 +7,11 @@ import contextlib
 import os
 
 from sb3_adc.cli.benchmark_command import add_backend_arguments, apply_grid_arguments, run_with_progress
-from sb3_adc.cli.common import add_command
+from sb3_adc.cli.common import CommandError, add_command
 from sb3_adc.config import check_env_id
-from sb3_adc.experiment.experiments import read_experiment, run_experiment
+from sb3_adc.experiment.experiments import Experiment, read_experiment, run_experiment
 from sb3_adc.experiment.layout import FolderLock
+from sb3_adc.experiment.tuning_grid import run_tuning, summarise
 
 #: The line of ``sb3-adc experiment`` in ``sb3-adc --help``.
 HELP = "run an experiment file (configurations x environments x seeds), write its tables and figures"
@@ -21,13 +22,16 @@ backend) or per Ray task, resumable like `sb3-adc benchmark`; then write to its 
 merged tables (final.csv, evaluations.csv, episodes.csv), the summary (summary.csv, summary.md,
 summary_table.csv: IQM [95% CI], across-seed std, AUC, P(reference > configuration)) and the
 figures; with test_sets, each finished run's final model scored on its held-out episodes
-(test_episodes.csv, test_runs.csv, test_summary.{csv,md}), resumably. A bad file stops the command
-with exit status 2 before anything is trained.
+(test_episodes.csv, test_runs.csv, test_summary.{csv,md}), resumably. A file with tuning: runs one
+Optuna study per configuration instead (--workers: each study's worker processes; results: trials.csv,
+the winners' hyperparams/, summary.md). A bad file stops the command with exit status 2 before
+anything is trained.
 
 examples:
   sb3-adc experiment benchmarks/experiments/noisy_pendulum_shipped.yml --workers 2
   sb3-adc experiment benchmarks/experiments/noisy_pendulum_shipped.yml --report   # redraw, no training
   sb3-adc experiment benchmarks/experiments/noisy_pendulum_shipped.yml --tiny     # does the file run?
+  sb3-adc experiment benchmarks/experiments/fair_tuning.yml --workers 2          # equal-budget tuning
 """
 
 
@@ -63,6 +67,8 @@ def run(args: argparse.Namespace) -> int:
     experiment = read_experiment(args.file)
     for env_id in experiment.envs:
         check_env_id(env_id)
+    if experiment.tuning is not None:
+        return run_tuning_file(experiment, args)
     if args.report:
         from sb3_adc.experiment.summary import write_report  # rliable: only the commands that need it import it
 
@@ -95,4 +101,31 @@ def run(args: argparse.Namespace) -> int:
         print(f"Wrote the tables and figures of {experiment.name} in {experiment.results}")
         with open(os.path.join(experiment.results, "summary.md"), encoding="utf-8") as stream:
             print(stream.read())
+    return 0
+
+
+def run_tuning_file(experiment: Experiment, args: argparse.Namespace) -> int:
+    """
+    Run a file with ``tuning:`` (:mod:`sb3_adc.experiment.tuning_grid`), or only rewrite its summary (``--report``).
+
+    :param experiment: The file
+    :param args: The parsed command line
+    :return: The exit status
+    """
+    if args.backend != "local":
+        raise CommandError("a tuning file runs on the local backend (--workers: each study's worker processes)")
+    if args.report:
+        lock = FolderLock(experiment.results, REPORT_ACTIVITY) if os.path.isdir(experiment.results) else None
+        with lock or contextlib.nullcontext():
+            summary, _ = summarise(experiment, experiment.results, experiment.seeds)
+        print("\n".join(summary))
+        return 0
+    print(f"Experiment {experiment.name}: {experiment.description}")
+    print(f"{len(experiment.configs)} studies ({'tiny' if args.tiny else experiment.tuning.trials} trials each)")  # type: ignore[union-attr]
+    summary = run_tuning(experiment, args.workers, tiny=args.tiny)
+    print("\n".join(summary))
+    if args.tiny:
+        print(f"{experiment.name} runs: {len(experiment.configs)} tiny studies and their summary passed (nothing kept)")
+    else:
+        print(f"Wrote the trials, winners and summary of {experiment.name} in {experiment.results}")
     return 0

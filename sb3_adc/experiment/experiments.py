@@ -24,6 +24,7 @@ The file (read with the hyperparameter files' bounded YAML reader: nothing in it
       held-out layouts: {env_kwargs: {start_position_jitter: 0.0}, layout_seeds: {start: 1000000, stop: 1000100}}
       unseen course files: {env_kwargs: {start_position_jitter: 0.1}, courses: [unseen_posts], episodes: 10}
     diagnostics: {every: 2000, episodes: 5}  # optional, one env: each run logs the critic diagnostics
+    tuning: {trials: 6, objective: return}  # optional, one env: an Optuna study per configuration (tuning_grid.py)
 
 Paths are relative to the file's folder. ``hyperparams`` is a folder of ``{algo}.yml`` files (default: the shipped
 ones); ``overrides`` are ``-params``. Each configuration is a benchmark grid in ``{runs}/{config}/``; the tables
@@ -54,11 +55,12 @@ from sb3_adc.experiment.benchmark import (
 )
 from sb3_adc.experiment.layout import FolderLock
 from sb3_adc.experiment.test_sets import TestSet, TestSetError, is_int, read_test_sets, score_outcomes
+from sb3_adc.experiment.tuning_grid import Tuning, read_tuning
 
 #: Keys of an experiment file and of one of its configurations.
 KEYS: tuple[str, ...] = ("description", "envs", "seeds", "n_timesteps", "evaluation", "configs", "reference", "threshold")
-KEYS += ("bootstrap_reps", "runs", "results", "figures", "test_sets", "diagnostics")
-CONFIG_KEYS = ("algo", "hyperparams", "overrides", "label", "reference")
+KEYS += ("bootstrap_reps", "runs", "results", "figures", "test_sets", "diagnostics", "tuning")
+CONFIG_KEYS = ("algo", "hyperparams", "overrides", "label", "reference", "search_space")
 EVALUATION_KEYS = ("episodes", "final_episodes")
 DIAGNOSTICS_KEYS = ("every", "episodes")
 #: Bounds on a file's grid, so that a typo cannot ask for a million runs.
@@ -114,6 +116,7 @@ class Experiment:
     :param diagnostics: ``{every: steps, episodes: n}``: each run logs the critic diagnostics
         (:class:`~sb3_adc.diagnostics.CriticDiagnosticsCallback`) every ``every`` steps with ``episodes``
         evaluation rollouts (``None``: none)
+    :param tuning: One Optuna study per configuration instead of the grid (:mod:`~sb3_adc.experiment.tuning_grid`)
     """
 
     name: str
@@ -133,6 +136,7 @@ class Experiment:
     figures: str | None = None
     test_sets: dict[str, TestSet] = field(default_factory=dict)
     diagnostics: dict[str, int] | None = None
+    tuning: Tuning | None = None
 
     def grids(self, tiny: bool = False, runs: str | None = None) -> dict[str, BenchmarkSettings]:
         """
@@ -308,7 +312,7 @@ def read_experiment(path: str) -> Experiment:
         test_sets = read_test_sets(data.get("test_sets"))
     except TestSetError as error:
         raise ExperimentError(path, error.key, error.problem) from None
-    return Experiment(
+    experiment = Experiment(
         name=name,
         path=os.path.abspath(path),
         description=description,
@@ -327,6 +331,7 @@ def read_experiment(path: str) -> Experiment:
         test_sets=test_sets,
         diagnostics=diagnostics,
     )
+    return dataclasses.replace(experiment, tuning=read_tuning(data, experiment))
 
 
 def run_experiment(

@@ -5,6 +5,7 @@ budget; bad files are refused with the key named (exit status 2 at the CLI) befo
 """
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -16,11 +17,15 @@ from sb3_adc.cli import main
 from sb3_adc.experiment import test_sets as scoring
 from sb3_adc.experiment.experiments import ExperimentError, read_experiment, repository_root, run_experiment
 from sb3_adc.experiment.summary import diagnostics_summary, summary
+from sb3_adc.experiment.tuning_grid import record as tuning_record
 
 ROOT = Path(__file__).resolve().parents[2]
 FILES = sorted((ROOT / "benchmarks" / "experiments").glob("*.yml"))
 IDS = [path.stem for path in FILES]
 RECORDED = ("configs", "reference", "envs", "seeds", "n_timesteps", "resolved")
+#: What the metadata of a tuning file's results records of its studies (an older one lacks the last four).
+TUNING_RECORDED = ("env", "seeds", "n_trials", "n_timesteps", "sampler", "pruner")
+TUNING_RECORDED += ("fixed", "starting_points", "search_space", "eval_env_kwargs")
 
 
 def test_there_are_experiment_files():
@@ -34,6 +39,17 @@ def test_file_resolves_to_the_settings_recorded_with_its_results(path):
     if not Path(experiment.results).is_dir():
         pytest.skip(f"not run yet: no results committed in {Path(experiment.results).relative_to(ROOT)}")
     metadata = json.loads((Path(experiment.results) / "metadata.json").read_text())
+    if experiment.tuning is not None:  # the studies' settings: budget, seeds, sampler, starting points, spaces
+        record = json.loads(json.dumps(tuning_record(experiment)))
+        recorded = [key for key in TUNING_RECORDED if key in metadata]
+        assert set(TUNING_RECORDED[:6]) <= set(recorded)
+        assert {key: record[key] for key in recorded} == {key: metadata[key] for key in recorded}
+
+        def objective(text):  # an older metadata does not name the quantity when it is the return
+            return re.sub(r"'s return", "", text)
+
+        assert objective(record["objective"]) == objective(metadata["objective"])
+        return
     record = json.loads(json.dumps(experiment.record(repository_root(experiment))))
     assert {key: record[key] for key in RECORDED} == {key: metadata[key] for key in RECORDED}
     assert metadata["experiment"] == f"benchmarks/experiments/{path.name}"
@@ -96,8 +112,12 @@ def test_test_set_summary_regenerates_from_the_committed_run_rates(path):
 
 
 @pytest.mark.parametrize("path", FILES, ids=IDS)
-def test_file_runs_end_to_end_on_a_tiny_budget(path):
+def test_file_runs_end_to_end_on_a_tiny_budget(path, capsys):
     experiment = read_experiment(str(path))
+    if experiment.tuning is not None:  # every study, two trials of a few hundred steps, and the summary
+        assert main(["experiment", str(path), "--tiny", "--workers", "1"]) == 0
+        assert f"{path.stem} runs: {len(experiment.configs)} tiny studies" in capsys.readouterr().out
+        return
     outcomes = run_experiment(experiment, workers=1, tiny=True)
     assert [outcome.status for outcome in outcomes] == ["trained"] * len(experiment.configs)
     assert {outcome.spec.algo for outcome in outcomes} == {config.algo for config in experiment.configs.values()}
@@ -148,6 +168,22 @@ figures: ../figures
         (("figures: ../figures", "diagnostics: {every: 0}"), "diagnostics.every"),
         (("figures: ../figures", "diagnostics: {every: 10, eval_env: x}"), "diagnostics"),
         (("envs: [Pendulum-v1]", "envs: [Pendulum-v1, MountainCarContinuous-v0]\ndiagnostics: {}"), "diagnostics"),
+        # A tuning file: each key refused where it is defined.
+        (("figures: ../figures", "tuning: {trials: 0}"), "tuning.trials"),
+        (("figures: ../figures", "tuning: {objective: return}"), "tuning.trials"),
+        (("figures: ../figures", "tuning: {trials: 2, sampler: grid}"), "tuning.sampler"),
+        (("figures: ../figures", "tuning: {trials: 2, objective: cost}"), "tuning.objective"),
+        (("figures: ../figures", "tuning: {trials: 2, n_evaluations: 0}"), "tuning.n_evaluations"),
+        (("figures: ../figures", "tuning: {trials: 2, budget: 3}"), "tuning"),
+        (("figures: ../figures", "tuning: {trials: 2, fixed: [1]}"), "tuning.fixed"),
+        (("envs: [Pendulum-v1]", "envs: [Pendulum-v1, MountainCarContinuous-v0]\ntuning: {trials: 2}"), "envs"),
+        (("label: DDPG}", "label: DDPG, search_space: {tau: [0.01]}}"), "configs.ddpg_small.search_space"),
+        (("label: DDPG}", "search_space: {tau: 0.01}}\ntuning: {trials: 2}"), "configs.ddpg_small.search_space"),
+        (("label: DDPG}", "search_space: {batch_size: [8]}}\ntuning: {trials: 2}"), "configs.ddpg_small.search_space"),
+        (
+            ("{episodes: 1, final_episodes: 2}", "{episodes: 1}\ntuning: {trials: 2, n_startup_trials: -1}"),
+            "tuning.n_startup_trials",
+        ),
     ],
 )
 def test_bad_files_are_refused_naming_the_key(tmp_path, replace, key, capsys):

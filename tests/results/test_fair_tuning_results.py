@@ -1,18 +1,19 @@
-"""The committed equal-budget studies of ``benchmarks/fair_tuning.py`` agree with themselves: every algorithm had the
-same number of finished trials, a trial's value is the mean of its seeds, the winner files hold the best trial, and
-the lidar study's summary and trial times rebuild from its trials."""
+"""The committed equal-budget studies of ``benchmarks/experiments/fair_tuning*.yml`` agree with themselves: every
+algorithm had the same number of finished trials, a trial's value is the mean of its seeds, the winner files hold
+the best trial, and the lidar study's summary and trial times rebuild from its trials."""
 
 from __future__ import annotations
 
 import csv
-import importlib
 import json
 import re
 import shutil
-import sys
 from pathlib import Path
 
 import pytest
+
+from sb3_adc.experiment.experiments import read_experiment
+from sb3_adc.experiment.tuning_grid import summarise
 
 ROOT = Path(__file__).resolve().parents[2]
 FOLDERS = sorted(path.parent for path in (ROOT / "benchmarks" / "results").glob("fair_tuning*/metadata.json"))
@@ -53,13 +54,8 @@ def test_lidar_summary_and_trial_times_rebuild_from_the_trials(tmp_path):
     for algo in trials_of(folder):
         (tmp_path / algo).mkdir()
         shutil.copy(folder / algo / "trials.csv", tmp_path / algo / "trials.csv")
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    try:
-        fair_tuning = importlib.import_module("fair_tuning")
-        _, trial_time = fair_tuning.summarise(tmp_path, fair_tuning.STUDIES["lidar"])
-    finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
-        sys.modules.pop("fair_tuning", None)
+    experiment = read_experiment(str(ROOT / "benchmarks" / "experiments" / "fair_tuning_lidar.yml"))
+    _, trial_time = summarise(experiment, str(tmp_path), experiment.seeds)
     assert (tmp_path / "summary.md").read_text() == (folder / "summary.md").read_text()
     assert trial_time == metadata["trial_time_s"]
     assert set(metadata["starting_points"]) == set(trials_of(folder))

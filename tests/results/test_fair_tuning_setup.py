@@ -1,20 +1,22 @@
-"""The lidar study of ``benchmarks/fair_tuning.py`` starts every algorithm from its starting entry changed the same
-way: each starting file differs from the ``-v1`` entry the studies began with (``benchmarks/configs/starting_entries/``)
-only in the settings the budget sweeps found for every learner (and, for ADC, in the update settings they found for
-it), so no baseline starts handicapped."""
+"""The lidar study of ``benchmarks/experiments/fair_tuning_lidar.yml`` starts every algorithm from its starting entry
+changed the same way: each starting file differs from the ``-v1`` entry the studies began with
+(``benchmarks/configs/starting_entries/``) only in the settings the budget sweeps found for every learner (and, for
+ADC, in the update settings they found for it), so no baseline starts handicapped."""
 
 from __future__ import annotations
 
-import importlib
 import json
-import sys
 from pathlib import Path
 
 import pytest
 
+from sb3_adc.cli import main
 from sb3_adc.config.loader import read_hyperparams_file, select_entry
+from sb3_adc.experiment.experiments import read_experiment
+from sb3_adc.experiment.tuning_grid import study_settings
 
 ROOT = Path(__file__).resolve().parents[2]
+LIDAR_STUDY = ROOT / "benchmarks" / "experiments" / "fair_tuning_lidar.yml"
 STARTING_ENTRIES = ROOT / "benchmarks" / "configs" / "starting_entries"
 #: What every starting entry changes, with the values the budget sweeps found.
 COMMON = {
@@ -27,25 +29,18 @@ COMMON = {
 ADC_ONLY = {"learning_rate", "policy_delay", "target_policy_noise", "target_noise_clip", "policy_kwargs"}
 
 
-@pytest.fixture(scope="module")
-def fair_tuning():
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    yield importlib.import_module("fair_tuning")
-    sys.path.remove(str(ROOT / "benchmarks"))
-
-
 @pytest.mark.parametrize("algo", ["adc", "ddpg", "td3", "sac"])
-def test_starting_file_is_the_starting_entry_changed_alike(fair_tuning, algo):
-    study = fair_tuning.STUDIES["lidar"]
-    env_id = study.env_id
-    path = study.starting_points[algo]
+def test_starting_file_is_the_starting_entry_changed_alike(algo):
+    study = study_settings(read_experiment(str(LIDAR_STUDY)), algo)
+    env_id, path = study.env_id, str(study.conf_file)
     start, _ = select_entry(read_hyperparams_file(path), env_id, path)
     entry_path = str(STARTING_ENTRIES / f"{algo}.yml")
     entry, _ = select_entry(read_hyperparams_file(entry_path), env_id, entry_path)
     for key, value in COMMON.items():
         assert start[key] == value, key
     # The fixed settings of the study agree with the starting entries.
-    for key, value in study.fixed.items():
+    assert study.overrides
+    for key, value in study.overrides.items():
         assert start[key] == value, key
     allowed = set(COMMON) | (ADC_ONLY if algo == "adc" else set())
     changed = {key for key in set(start) | set(entry) if start.get(key) != entry.get(key)}
@@ -56,22 +51,46 @@ def test_starting_file_is_the_starting_entry_changed_alike(fair_tuning, algo):
         assert "n_critics=2" in start["policy_kwargs"]
 
 
-def test_report_only_invocation_keeps_the_training_invocations_metadata(fair_tuning, tmp_path, monkeypatch):
+#: A tuning file of two tiny studies.
+TINY_TUNING = """
+envs: [Pendulum-v1]
+seeds: [0]
+n_timesteps: 200
+evaluation: {episodes: 1, final_episodes: 1}
+configs:
+  ddpg: {algo: ddpg, overrides: {learning_starts: 50, batch_size: 16, policy_kwargs: "dict(net_arch=[8])"}}
+tuning: {trials: 2, n_startup_trials: 1}
+"""
+
+
+def test_report_only_invocation_keeps_the_training_invocations_metadata(tmp_path, capsys):
     """A second invocation of a finished study trains nothing: it must not add wall time, nor replace the workers
-    (and machine) of the invocation that trained with its own."""
-    monkeypatch.setattr(fair_tuning, "RUNS_DIR", tmp_path / "runs" / "fair_tuning")
-    monkeypatch.setattr(fair_tuning, "RESULTS_DIR", tmp_path / "results" / "fair_tuning")
-    metadata_path = tmp_path / "results" / "fair_tuning_quick" / "metadata.json"
+    (and machine) of the invocation that trained with its own; ``--report`` rewrites the summary alone."""
+    path = tmp_path / "experiments" / "probe.yml"
+    path.parent.mkdir()
+    path.write_text(TINY_TUNING)
+    results = tmp_path / "results" / "probe"
+    metadata_path = results / "metadata.json"
 
     def invoke(workers: int) -> dict:
-        monkeypatch.setattr(sys, "argv", ["fair_tuning.py", "--quick", "--algos", "ddpg", "--workers", str(workers)])
-        fair_tuning.main()
+        assert main(["experiment", str(path), "--workers", str(workers)]) == 0
         return json.loads(metadata_path.read_text())
 
     trained = invoke(1)
     assert trained["workers"] == 1
     assert trained["wall_time_s"]["ddpg"] > 0
+    assert trained["n_trials"] == 2
+    assert (tmp_path / "runs" / "probe" / "tuning" / "ddpg-Pendulum-v1" / "study.log").is_file()
+    assert (results / "ddpg" / "trials.csv").is_file()
+    assert (results / "hyperparams" / "ddpg.yml").is_file()
     reported = invoke(2)
     assert reported["workers"] == 1
     assert reported["wall_time_s"] == trained["wall_time_s"]
     assert reported["trial_time_s"] == trained["trial_time_s"]
+    summary = (results / "summary.md").read_text()
+    (results / "summary.md").unlink()
+    capsys.readouterr()
+    assert main(["experiment", str(path), "--report"]) == 0
+    assert (results / "summary.md").read_text() == summary
+    assert "| ddpg | 2 |" in capsys.readouterr().out
+    assert json.loads(metadata_path.read_text()) == reported
