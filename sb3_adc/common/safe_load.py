@@ -63,6 +63,8 @@ ALLOWED: dict[str, frozenset[str]] = {
     "stable_baselines3.common.running_mean_std": frozenset({"RunningMeanStd"}),
     "stable_baselines3.common.vec_env.vec_normalize": frozenset({"VecNormalize"}),
     "stable_baselines3.common.buffers": frozenset({"ReplayBuffer", "DictReplayBuffer", "NStepReplayBuffer"}),
+    "stable_baselines3.her.her_replay_buffer": frozenset({"HerReplayBuffer"}),
+    "stable_baselines3.her.goal_selection_strategy": frozenset({"GoalSelectionStrategy"}),
     "stable_baselines3.common.noise": frozenset(
         {"NormalActionNoise", "OrnsteinUhlenbeckActionNoise", "VectorizedActionNoise"}
     ),
@@ -103,14 +105,19 @@ SPACE_GLOBALS: dict[str, frozenset[str]] = {
 #: Harmless constructors of Python's own types that a pickle may name.
 BUILTIN_GLOBALS: dict[str, frozenset[str]] = {module: ALLOWED[module] for module in ("builtins", "collections")}
 #: The globals of a replay buffer saved by SB3's ``save_replay_buffer`` (a checkpoint's
-#: ``rl_model_replay_buffer_{t}_steps.pkl``, the RL Zoo's ``replay_buffer.pkl``): SB3's buffer classes, numpy,
-#: the spaces and the buffer's ``torch.device``.
+#: ``rl_model_replay_buffer_{t}_steps.pkl``, the RL Zoo's ``replay_buffer.pkl``): SB3's buffer classes (HER's
+#: with its goal-selection enum: SB3 drops its environment before pickling), numpy, the spaces and the buffer's
+#: ``torch.device``.
 REPLAY_BUFFER_GLOBALS: dict[str, frozenset[str]] = _merge(
     NUMPY_GLOBALS,
     SPACE_GLOBALS,
     BUILTIN_GLOBALS,
     {"torch": frozenset({"device"})},
-    {"stable_baselines3.common.buffers": ALLOWED["stable_baselines3.common.buffers"]},
+    {
+        module: ALLOWED[module]
+        for module in ALLOWED
+        if module.startswith(("stable_baselines3.common.buffers", "stable_baselines3.her."))
+    },
 )
 #: The globals of ``VecNormalize`` statistics (a checkpoint's ``rl_model_vecnormalize_{t}_steps.pkl``, a run's
 #: ``vecnormalize.pkl``): ``VecNormalize`` without its environments, its ``RunningMeanStd``, numpy and the spaces.

@@ -123,3 +123,24 @@ def test_vec_normalize_statistics_load_without_running_code(tmp_path: Path, host
     with pytest.raises(UnsafeModelFileError, match=r"builtins\.exec"):
         load_vec_normalize(str(tmp_path / "hostile.pkl"), venv)
     assert hostile.marker not in os.environ
+
+
+def test_her_replay_buffers_load_without_running_code(tmp_path: Path) -> None:
+    """A checkpoint's HER buffer (``replay_buffer_class: HerReplayBuffer``) resumes through the restricted
+    unpickler: SB3 drops its environment before pickling, so it holds only the buffer and its goal-selection enum."""
+    from stable_baselines3 import HerReplayBuffer
+    from stable_baselines3.common.envs import BitFlippingEnv
+
+    from sb3_adc.common.safe_load import REPLAY_BUFFER_GLOBALS, restricted_load
+
+    env = BitFlippingEnv(n_bits=4, continuous=True, max_steps=4)
+    kwargs = dict(
+        replay_buffer_kwargs=dict(n_sampled_goal=2), learning_starts=20, batch_size=8, policy_kwargs=dict(net_arch=[8])
+    )
+    model = ADC("MultiInputPolicy", env, replay_buffer_class=HerReplayBuffer, seed=0, **kwargs).learn(60)
+    model.save_replay_buffer(tmp_path / "buffer.pkl")
+    buffer = restricted_load(str(tmp_path / "buffer.pkl"), REPLAY_BUFFER_GLOBALS, "a replay buffer")
+    assert isinstance(buffer, HerReplayBuffer)
+    assert buffer.size() == model.replay_buffer.size() == 60
+    buffer.set_env(model.get_env())
+    assert buffer.sample(8).observations["desired_goal"].shape == (8, 4)
