@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from sb3_adc.common.atomic import write_atomically
 from sb3_adc.diagnostics import ARRAY_KEYS, HISTORY_CSV, load_history, plot_diagnostics
 from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CSV
 from sb3_adc.experiment.plots import plot_results
@@ -305,14 +306,35 @@ def write_diagnostics(experiment: Experiment, runs: str, output: str, figures: s
         plot_diagnostics(histories, os.path.join(figures, f"{experiment.name}_diagnostics.png"), title=title)
 
 
+def read_metadata(path: str) -> dict[str, Any]:
+    """
+    A results folder's ``metadata.json`` (empty where there is none yet).
+
+    :param path: The file
+    """
+    if not os.path.isfile(path):
+        return {}
+    with open(path, encoding="utf-8") as stream:
+        loaded: dict[str, Any] = json.load(stream)
+    return loaded
+
+
+def write_metadata(path: str, metadata: Mapping[str, Any]) -> None:
+    """
+    Write a results folder's ``metadata.json`` atomically: it accumulates what no table can give again (the wall time
+    of every invocation), so an interrupted write must leave the previous file.
+
+    :param path: The file
+    :param metadata: Its content
+    """
+    write_atomically(path, lambda stream: stream.write(json.dumps(metadata, indent=2) + "\n"))
+
+
 def _write_metadata(experiment: Experiment, output: str, wall_time_s: float) -> None:
     from sb3_adc.experiment.experiments import repository_root
 
     path = os.path.join(output, "metadata.json")
-    previous: dict[str, Any] = {}
-    if os.path.isfile(path):
-        with open(path, encoding="utf-8") as stream:
-            previous = json.load(stream)
+    previous = read_metadata(path)
     wall_times = dict(previous.get("wall_time_s_per_invocation", {}))
     wall_times[str(len(wall_times))] = round(wall_time_s, 1)
     metadata = {
@@ -322,5 +344,4 @@ def _write_metadata(experiment: Experiment, output: str, wall_time_s: float) -> 
         **{key: previous[key] for key in ("notes",) if key in previous},
         **machine_metadata(),
     }
-    with open(path, "w", encoding="utf-8") as stream:
-        stream.write(json.dumps(metadata, indent=2) + "\n")
+    write_metadata(path, metadata)

@@ -30,7 +30,6 @@ from __future__ import annotations
 import contextlib
 import csv
 import dataclasses
-import json
 import os
 import shutil
 import tempfile
@@ -260,6 +259,7 @@ def run_tuning(experiment: Experiment, workers: int | None = None, tiny: bool = 
     :raises HyperparamsError: for an entry or choice the loader refuses, before any study trains
     :raises RunLocked: if another invocation is working on the results folder or one of the studies
     """
+    from sb3_adc.experiment.summary import read_metadata, write_metadata
     from sb3_adc.experiment.tuning import tune
 
     for name in experiment.configs:  # every study's entries and choices checked before any trains
@@ -272,7 +272,7 @@ def run_tuning(experiment: Experiment, workers: int | None = None, tiny: bool = 
         output = os.path.join(folder, "results") if folder else experiment.results
         os.makedirs(os.path.join(output, "hyperparams"), exist_ok=True)
         metadata_path = os.path.join(output, "metadata.json")
-        metadata = _read_json(metadata_path) or {"wall_time_s": {}}
+        metadata = read_metadata(metadata_path) or {"wall_time_s": {}}
         summary: list[str] = []
         for name in experiment.configs:
             study = study_settings(experiment, name, workers or 1, tiny, os.path.join(folder, "runs") if folder else None)
@@ -292,14 +292,5 @@ def run_tuning(experiment: Experiment, workers: int | None = None, tiny: bool = 
             shutil.copyfile(result.best_hyperparams_file, os.path.join(output, "hyperparams", f"{name}.yml"))
             summary, trial_time = summarise(experiment, output, list(study.seeds))
             metadata.update({**record(experiment, tiny), "trial_time_s": trial_time, **invocation})
-            with open(metadata_path, "w", encoding="utf-8") as stream:
-                stream.write(json.dumps(metadata, indent=2) + "\n")
+            write_metadata(metadata_path, metadata)
     return summary
-
-
-def _read_json(path: str) -> dict[str, Any] | None:
-    if not os.path.isfile(path):
-        return None
-    with open(path, encoding="utf-8") as stream:
-        loaded: dict[str, Any] = json.load(stream)
-    return loaded
