@@ -60,13 +60,14 @@ def _sigterm_as_sigint(signum: int, frame: FrameType | None) -> None:
     """
     A SIGTERM handler that does what SIGINT (Ctrl-C) would do now: call the SIGINT handler in place (during
     training, the run's own, which stops after the step in progress with a checkpoint), or raise
-    ``KeyboardInterrupt`` where SIGINT has Python's default handling; nothing where SIGINT is ignored.
+    ``KeyboardInterrupt``, also where SIGINT is ignored: a shell script that starts a command in the background
+    (``sb3-adc train ... &``) starts it with SIGINT ignored, and a scheduler's SIGTERM must still stop it.
     """
     _SIGTERM_RECEIVED.set()
     handler = signal.getsignal(signal.SIGINT)
     if callable(handler):
         handler(signal.SIGINT, frame)
-    elif handler != signal.SIG_IGN:
+    else:
         raise KeyboardInterrupt
 
 

@@ -56,6 +56,27 @@ def test_sigterm_outside_training_raises_keyboard_interrupt_and_the_handler_is_r
     assert signal.getsignal(signal.SIGTERM) is before
 
 
+def test_sigterm_stops_a_process_started_with_sigint_ignored():
+    """A shell script's background job (``sb3-adc train ... &``) starts with SIGINT ignored: SIGTERM still stops it."""
+    code = (
+        "import os, signal, time\n"
+        "from sb3_adc.experiment.training import sigterm_as_sigint\n"
+        "assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN\n"
+        "try:\n"
+        "    with sigterm_as_sigint():\n"
+        "        os.kill(os.getpid(), signal.SIGTERM)\n"
+        "        time.sleep(5)\n"
+        "except KeyboardInterrupt:\n"
+        "    print('stopped')\n"
+    )
+    ignore_sigint = lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)  # noqa: E731
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, preexec_fn=ignore_sigint
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "stopped"
+
+
 def test_sigterm_calls_the_sigint_handler_in_place():
     calls = []
     previous_int = signal.signal(signal.SIGINT, lambda signum, frame: calls.append(signum))
