@@ -26,6 +26,7 @@ from sb3_adc.experiment.continuation import Continuation
 from sb3_adc.experiment.divergence import check_finite_weights
 from sb3_adc.experiment.evaluation import success_rate
 from sb3_adc.experiment.layout import CHECKPOINT_PREFIX, Checkpoint, DamagedFileError, RunLayout
+from sb3_adc.experiment.manifest import write_manifest
 
 
 @dataclass
@@ -316,9 +317,10 @@ class CheckpointSaver(CheckpointCallback):
         check_finite_weights(self.model)
         self.num_timesteps = self.model.num_timesteps
         checkpoint = self.layout.checkpoint(self.num_timesteps)
-        # Before the model: a continuation left by an earlier checkpoint of this timestep is not this one's.
-        if os.path.exists(checkpoint.continuation):
-            os.remove(checkpoint.continuation)
+        # Before the model: a continuation or manifest left by an earlier checkpoint of this timestep is not this one's.
+        for stale in (checkpoint.manifest, checkpoint.continuation):
+            if os.path.exists(stale):
+                os.remove(stale)
         # Replay buffer, statistics and continuation first: a checkpoint counts once its model zip exists.
         if hasattr(self.model, "save_replay_buffer") and getattr(self.model, "replay_buffer", None) is not None:
             with atomic_path(checkpoint.replay_buffer) as temporary:
@@ -328,6 +330,7 @@ class CheckpointSaver(CheckpointCallback):
             with atomic_path(checkpoint.continuation) as temporary:
                 continuation.save(temporary)
         save_model(self.model, checkpoint.model, checkpoint.vecnormalize)
+        write_manifest(checkpoint)
         self._prune()
         return checkpoint
 

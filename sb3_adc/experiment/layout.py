@@ -13,6 +13,7 @@ id with ``/`` replaced by ``-``, ``run_id`` counts from 1), holding::
     rl_model_vecnormalize_{t}_steps.pkl     checkpoint: VecNormalize statistics (with `normalize`)
     rl_model_continuation_{t}_steps.pkl     checkpoint: what makes the resumed run the same run (random
                                             generators, episodes in progress, the step in progress)
+    rl_model_manifest_{t}_steps.json        checkpoint: size and SHA-256 of each of its files, written last
     {env_name}/config.yml                   the resolved hyperparameters
     {env_name}/args.yml                     the run settings (algorithm, seed, budget, evaluation ...)
     {env_name}/vecnormalize.pkl             final VecNormalize statistics (with `normalize`)
@@ -278,6 +279,7 @@ class Checkpoint:
     :param vecnormalize: The VecNormalize statistics pickle (runs with ``normalize``)
     :param continuation: What an exact resume needs (:mod:`sb3_adc.experiment.continuation`; absent where none
         is exact)
+    :param manifest: The size and SHA-256 of each of the others (:mod:`sb3_adc.experiment.manifest`), written last
     """
 
     timesteps: int
@@ -285,11 +287,12 @@ class Checkpoint:
     replay_buffer: str
     vecnormalize: str
     continuation: str
+    manifest: str
 
     @property
     def files(self) -> tuple[str, ...]:
-        """All the checkpoint's paths (present or not), the model zip first."""
-        return (self.model, self.replay_buffer, self.vecnormalize, self.continuation)
+        """All the checkpoint's paths (present or not), the model zip first, the manifest last."""
+        return (self.model, self.replay_buffer, self.vecnormalize, self.continuation, self.manifest)
 
     def remove(self) -> None:
         """Delete the checkpoint's files that exist."""
@@ -372,6 +375,7 @@ class RunLayout:
             path("replay_buffer_", "pkl"),
             path("vecnormalize_", "pkl"),
             path("continuation_", "pkl"),
+            path("manifest_", "json"),
         )
 
     def checkpoints(self) -> list[Checkpoint]:

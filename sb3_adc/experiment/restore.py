@@ -33,6 +33,7 @@ from sb3_adc.common.safe_load import (
 from sb3_adc.experiment.callbacks import EvaluationHistory
 from sb3_adc.experiment.continuation import Continuation
 from sb3_adc.experiment.layout import Checkpoint, DamagedFileError, RunLayout
+from sb3_adc.experiment.manifest import manifest_damage
 from sb3_adc.experiment.monitor_files import truncate_monitor
 
 
@@ -75,7 +76,9 @@ class CheckpointContents:
 
 def read_checkpoint(checkpoint: Checkpoint, trust: bool = False) -> CheckpointContents:
     """
-    Read a checkpoint to resume from, and tell whether it can be: its model zip must open with intact members (CRC
+    Read a checkpoint to resume from, and tell whether it can be: its files must be those its manifest lists
+    (:func:`~sb3_adc.experiment.manifest.manifest_damage`, checked before anything is unpickled; a checkpoint written
+    before manifests, or cut before its manifest, has none); its model zip must open with intact members (CRC
     checked) and an SB3 model's ``data``; its replay buffer, ``VecNormalize`` statistics and continuation, where
     present, must unpickle. Nothing of the files runs code: the model's entries are built from the safe load's
     allow-list (:func:`~sb3_adc.common.safe_load.safe_objects`), each pickle from the allow-list of what sb3-adc
@@ -93,6 +96,9 @@ def read_checkpoint(checkpoint: Checkpoint, trust: bool = False) -> CheckpointCo
     name = os.path.basename(checkpoint.model)
     if not os.path.isfile(checkpoint.model):
         raise DamagedCheckpoint(f"{name} is missing")
+    damage = manifest_damage(checkpoint) if os.path.isfile(checkpoint.manifest) else None
+    if damage is not None:
+        raise DamagedCheckpoint(damage)
     try:
         with zipfile.ZipFile(checkpoint.model) as archive:
             broken = archive.testzip()
@@ -142,13 +148,16 @@ def read_checkpoint(checkpoint: Checkpoint, trust: bool = False) -> CheckpointCo
 
 def checkpoint_damage(checkpoint: Checkpoint, trust: bool = False) -> str | None:
     """
-    Why a checkpoint cannot be resumed from, or ``None`` if it can (:func:`read_checkpoint`, whose content is
-    dropped: a resume keeps it instead).
+    Why a checkpoint cannot be resumed from, or ``None`` if it can: its manifest's check, which unpickles nothing
+    (:func:`~sb3_adc.experiment.manifest.manifest_damage`), or, for a checkpoint without one,
+    :func:`read_checkpoint`, whose content is dropped (a resume keeps it instead).
 
     :param checkpoint: The checkpoint
     :param trust: As for :func:`read_checkpoint`
-    :raises UnsafeModelFileError: for a file outside the allow-lists, as :func:`read_checkpoint`
+    :raises UnsafeModelFileError: for a file outside the allow-lists, as :func:`read_checkpoint` (without a manifest)
     """
+    if os.path.isfile(checkpoint.model) and os.path.isfile(checkpoint.manifest):
+        return manifest_damage(checkpoint)
     try:
         read_checkpoint(checkpoint, trust)
     except DamagedCheckpoint as error:

@@ -20,6 +20,7 @@ from stable_baselines3.common.save_util import load_from_pkl, load_from_zip_file
 from sb3_adc.experiment import RunInterrupted, TrainSettings, resume, train
 from sb3_adc.experiment.continuation import EpisodeRecorder
 from sb3_adc.experiment.layout import RunLayout
+from sb3_adc.experiment.manifest import write_manifest
 
 BASE = """\
 default:
@@ -216,7 +217,9 @@ def test_a_checkpoint_without_continuation_goes_on_from_a_new_random_stream(unin
     expected = uninterrupted("adc-pendulum")
     run_dir = train(case_settings(tmp_path, "adc-pendulum")).run_dir
     crash_after(run_dir, "Pendulum-v1", 200)
-    os.remove(RunLayout(run_dir, "Pendulum-v1").checkpoint(200).continuation)
+    checkpoint = RunLayout(run_dir, "Pendulum-v1").checkpoint(200)
+    os.remove(checkpoint.continuation)
+    write_manifest(checkpoint)  # as a second Ctrl-C's checkpoint is written: intact, without a continuation
     capsys.readouterr()
     assert resume(run_dir).resumed_from == 200
     out = " ".join(capsys.readouterr().out.split())
@@ -275,6 +278,7 @@ def test_a_continuation_of_another_checkpoint_is_not_used(tmp_path, capsys, case
     run_dir = train(case_settings(tmp_path, "adc-pendulum", n_timesteps=400)).run_dir
     layout = RunLayout(run_dir, "Pendulum-v1")
     os.replace(layout.checkpoint(400).continuation, layout.checkpoint(200).continuation)
+    write_manifest(layout.checkpoint(200))  # its manifest agrees: the continuation's own timestep refuses it
     crash_after(run_dir, "Pendulum-v1", 200)
     capsys.readouterr()
     assert resume(run_dir).resumed_from == 200

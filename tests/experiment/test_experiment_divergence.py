@@ -115,7 +115,11 @@ def test_a_checkpoint_with_non_finite_weights_is_refused(tmp_path):
     with pytest.raises(NonFiniteWeights, match=r"actor\.mu\.0\.weight"):
         saver.save()
     assert [checkpoint.timesteps for checkpoint in layout.checkpoints()] == [0]
-    assert sorted(path.name for path in tmp_path.iterdir()) == ["rl_model_0_steps.zip", "rl_model_replay_buffer_0_steps.pkl"]
+    assert sorted(path.name for path in tmp_path.iterdir()) == [
+        "rl_model_0_steps.zip",
+        "rl_model_manifest_0_steps.json",
+        "rl_model_replay_buffer_0_steps.pkl",
+    ]
 
 
 def test_a_nan_action_is_named_as_the_policys_output():

@@ -12,6 +12,7 @@ from stable_baselines3 import TD3
 from stable_baselines3.common.buffers import NStepReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 
+import sb3_adc.experiment.restore as restore
 from sb3_adc import ADC
 from sb3_adc.common.model_files import LOADED_N_STEP_WARNING, loading_model
 from sb3_adc.experiment import RunInterrupted, resume, train
@@ -69,15 +70,25 @@ def test_the_interrupted_run_is_intact(interrupted):
     assert [os.path.isfile(checkpoint.continuation) for checkpoint in layout.checkpoints()] == [True, True, False]
 
 
+def without_manifests(run_dir):
+    """The run as written before checkpoints had manifests: only reading the files tells whether they are intact."""
+    for checkpoint in RunLayout(str(run_dir), "Pendulum-v1").checkpoints():
+        os.remove(checkpoint.manifest)
+
+
 @pytest.mark.parametrize(
-    ("damaged", "reason"),
+    ("damaged", "reason", "manifest"),
     [
+        ("rl_model_250_steps.zip", "rl_model_250_steps.zip does not match its manifest (size differs)", True),
+        ("rl_model_replay_buffer_250_steps.pkl", "rl_model_replay_buffer_250_steps.pkl does not match its", True),
         # Cut in half, the zip may still open (on the zip torch writes inside it) but lacks the model's members.
-        ("rl_model_250_steps.zip", "rl_model_250_steps.zip "),
-        ("rl_model_replay_buffer_250_steps.pkl", "rl_model_replay_buffer_250_steps.pkl does not unpickle"),
+        ("rl_model_250_steps.zip", "rl_model_250_steps.zip ", False),
+        ("rl_model_replay_buffer_250_steps.pkl", "rl_model_replay_buffer_250_steps.pkl does not unpickle", False),
     ],
 )
-def test_resume_falls_back_to_the_newest_intact_checkpoint(run_dir, capsys, damaged, reason):
+def test_resume_falls_back_to_the_newest_intact_checkpoint(run_dir, capsys, damaged, reason, manifest):
+    if not manifest:
+        without_manifests(run_dir)
     truncate(run_dir / damaged)
     result = resume(str(run_dir))
     out = capsys.readouterr().out
@@ -97,14 +108,25 @@ def test_a_damaged_continuation_makes_its_checkpoint_damaged(run_dir, capsys):
     truncate(run_dir / "rl_model_continuation_200_steps.pkl")
     result = resume(str(run_dir))
     out = capsys.readouterr().out
-    assert "The checkpoint at timestep 200 is damaged (rl_model_continuation_200_steps.pkl does not unpickle" in out
+    assert "The checkpoint at timestep 200 is damaged (rl_model_continuation_200_steps.pkl does not match its" in out
     assert result.resumed_from == 100
     assert (run_dir / "rl_model_continuation_200_steps.pkl.damaged").is_file()
     assert (run_dir / "rl_model_200_steps.zip.damaged").is_file()
+    assert (run_dir / "rl_model_manifest_200_steps.json.damaged").is_file()
 
 
-def test_a_corrupted_member_of_a_checkpoint_zip_is_found(run_dir):
-    # Same length, one flipped byte inside a member: only the CRC check sees it.
+@pytest.mark.parametrize("manifest", [True, False])
+def test_a_corrupted_member_of_a_checkpoint_zip_is_found(run_dir, manifest, monkeypatch):
+    # Same length, one flipped byte inside a member: the manifest's SHA-256 sees it, and without one the CRC check.
+    if manifest:
+
+        def no_unpickling(*args, **kwargs):
+            raise AssertionError("the manifest's check unpickled a file")
+
+        for name in ("restricted_load", "safe_objects", "load_from_pkl"):
+            monkeypatch.setattr(restore, name, no_unpickling)
+    else:
+        without_manifests(run_dir)
     path = run_dir / "rl_model_250_steps.zip"
     data = bytearray(path.read_bytes())
     data[len(data) // 3] ^= 0xFF
@@ -113,6 +135,7 @@ def test_a_corrupted_member_of_a_checkpoint_zip_is_found(run_dir):
     damage = checkpoint_damage(layout.checkpoint(250))
     assert damage is not None
     assert "rl_model_250_steps.zip" in damage
+    assert (damage == "rl_model_250_steps.zip does not match its manifest (SHA-256 differs)") == manifest
     assert checkpoint_damage(layout.checkpoint(200)) is None
 
 

@@ -1,9 +1,10 @@
 """
 A resume reads the run folder's files without running code from them: the checkpoint's model zip with the safe load,
 its replay buffer, ``VecNormalize`` statistics and continuation with unpicklers that build only what sb3-adc writes in
-each. A hostile file planted in a run folder is refused (the run folder left as it was), not executed nor taken for
-damage; ``trust_model_file`` unpickles as SB3 does. The check that chooses the checkpoint reads each file once, and
-the resume uses what it read.
+each. A checkpoint's manifest finds a file changed after it was written before anything is unpickled (set aside as
+damage); a hostile file planted with a manifest that lists it is refused (the run folder left as it was), not
+executed nor taken for damage; ``trust_model_file`` unpickles as SB3 does. The check that chooses the checkpoint
+unpickles each file once, and the resume uses what it read.
 """
 
 from __future__ import annotations
@@ -30,7 +31,8 @@ from sb3_adc.common.safe_load import CONTINUATION_GLOBALS, UnsafeModelFileError
 from sb3_adc.experiment import TrainSettings, resume, train
 from sb3_adc.experiment.continuation import Continuation
 from sb3_adc.experiment.layout import RunLayout
-from sb3_adc.experiment.restore import checkpoint_damage, read_checkpoint
+from sb3_adc.experiment.manifest import write_manifest
+from sb3_adc.experiment.restore import DamagedCheckpoint, checkpoint_damage, read_checkpoint
 
 MARKER = "SB3_ADC_RUN_FILE_PAYLOAD_MARKER"
 
@@ -90,6 +92,12 @@ def _plant_in_zip(path: Path, key: str) -> None:
             archive.writestr(name, content)
 
 
+def _resign(run_dir: Path) -> None:
+    """Rewrite the manifest of the checkpoint at 200 for its files as they are now, as whoever can write the run
+    folder can: the manifest is an integrity check, not a signature, and a planted file must still be refused."""
+    write_manifest(RunLayout(str(run_dir), "Pendulum-v1").checkpoint(200))
+
+
 def _listing(folder: Path) -> dict[str, bytes]:
     return {path.name: path.read_bytes() for path in folder.iterdir() if path.is_file() and path.name != ".lock"}
 
@@ -108,6 +116,7 @@ def test_a_hostile_file_in_a_checkpoint_is_refused_not_run(run_dir, planted):
         _plant_in_zip(run_dir / planted, "action_noise")
     else:
         (run_dir / planted).write_bytes(pickle.dumps(_RunsCode()))
+    _resign(run_dir)
     before = _listing(run_dir)
     with pytest.raises(UnsafeModelFileError, match=r"builtins\.exec") as error:
         resume(str(run_dir))
@@ -116,14 +125,42 @@ def test_a_hostile_file_in_a_checkpoint_is_refused_not_run(run_dir, planted):
     # Refused, not taken for damage: nothing renamed *.damaged, nothing resumed from an older checkpoint.
     assert _listing(run_dir) == before
     with pytest.raises(UnsafeModelFileError):
-        checkpoint_damage(RunLayout(str(run_dir), "Pendulum-v1").checkpoint(200))
+        read_checkpoint(RunLayout(str(run_dir), "Pendulum-v1").checkpoint(200))
     assert MARKER not in os.environ
+
+
+@pytest.mark.parametrize(
+    ("listed", "damage"), [(True, "does not match its manifest (size differs)"), (False, "is not in its manifest")]
+)
+def test_a_file_its_manifest_does_not_list_is_damage_found_without_unpickling(run_dir, monkeypatch, capsys, listed, damage):
+    planted = "rl_model_continuation_200_steps.pkl"
+    if not listed:
+        (run_dir / planted).unlink()
+        _resign(run_dir)
+    (run_dir / planted).write_bytes(pickle.dumps(_RunsCode()))
+    read: list[str] = []
+    real_restricted = safe_load.restricted_load
+
+    def recorded(path: str, *args: Any) -> Any:
+        read.append(os.path.basename(path))
+        return real_restricted(path, *args)
+
+    monkeypatch.setattr(restore, "restricted_load", recorded)
+    assert checkpoint_damage(RunLayout(str(run_dir), "Pendulum-v1").checkpoint(200)) == f"{planted} {damage}"
+    result = resume(str(run_dir))
+    # Set aside as damaged before anything of it was unpickled; the run went on from the checkpoint before it.
+    assert planted not in read
+    assert MARKER not in os.environ
+    assert result.resumed_from == 100
+    assert (run_dir / (planted + ".damaged")).is_file()
+    assert f"The checkpoint at timestep 200 is damaged ({planted} {damage})" in capsys.readouterr().out
 
 
 def test_the_cli_refuses_a_planted_file_with_exit_2(run_dir, capsys):
     from sb3_adc.cli import main
 
     (run_dir / "rl_model_continuation_200_steps.pkl").write_bytes(pickle.dumps(_RunsCode()))
+    _resign(run_dir)
     assert main(["train", "--resume", str(run_dir), "--no-progress-bar"]) == 2
     err = capsys.readouterr().err
     assert "rl_model_continuation_200_steps.pkl" in err
@@ -133,6 +170,7 @@ def test_the_cli_refuses_a_planted_file_with_exit_2(run_dir, capsys):
 
 def test_trust_model_file_unpickles_the_run_folder_as_sb3_does(run_dir, capsys):
     (run_dir / "rl_model_continuation_200_steps.pkl").write_bytes(pickle.dumps(_RunsCode()))
+    _resign(run_dir)
     result = resume(str(run_dir), trust_model_file=True)
     assert os.environ.get(MARKER) == "ran"
     # The payload's result is no continuation: the run went on from a new random stream.
@@ -149,9 +187,9 @@ def test_a_tensor_storage_cannot_smuggle_an_unrestricted_load(run_dir):
     }
     path = run_dir / "rl_model_continuation_200_steps.pkl"
     path.write_bytes(pickle.dumps(_StorageRunsCode()))
-    damage = checkpoint_damage(RunLayout(str(run_dir), "Pendulum-v1").checkpoint(200))
-    assert damage is not None
-    assert "rl_model_continuation_200_steps.pkl does not unpickle" in damage
+    _resign(run_dir)
+    with pytest.raises(DamagedCheckpoint, match=r"rl_model_continuation_200_steps\.pkl does not unpickle"):
+        read_checkpoint(RunLayout(str(run_dir), "Pendulum-v1").checkpoint(200))
     assert MARKER not in os.environ
 
 
