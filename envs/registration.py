@@ -47,6 +47,12 @@ ENV_SPECS: dict[str, dict[str, Any]] = {
         "max_episode_steps": 500,
         "kwargs": {"noise_low": -0.1, "noise_high": 0.1, **_LIDAR_V1_KWARGS},
     },
+    # Two actions, steering and speed (sb3_adc_envs.lidar_course.speed): the -v1 task with a multi-dimensional action.
+    f"{NAMESPACE}/LidarObstacleCourseSpeed-v1": {
+        "entry_point": "sb3_adc_envs.lidar_course.speed:SpeedSteeringLidarCourse",
+        "max_episode_steps": 500,
+        "kwargs": _LIDAR_V1_KWARGS,
+    },
     # 200 steps: highway-env ends an episode itself after `duration` (40 s) at `policy_frequency` (5 Hz); a config
     # with another duration or frequency needs `max_episode_steps=` at `gym.make` to match.
     f"{NAMESPACE}/HighwayObstacle-v0": {

@@ -22,6 +22,7 @@ ENV_IDS = [
     "sb3_adc/LidarObstacleCourseNoisy-v0",
     "sb3_adc/LidarObstacleCourse-v1",
     "sb3_adc/LidarObstacleCourseNoisy-v1",
+    "sb3_adc/LidarObstacleCourseSpeed-v1",
     "sb3_adc/HighwayObstacle-v0",
 ]
 TINY = {
@@ -39,6 +40,7 @@ def test_the_environments_are_registered():
     assert gym.spec("sb3_adc/LidarObstacleCourseNoisy-v0").max_episode_steps == 500
     assert gym.spec("sb3_adc/LidarObstacleCourse-v1").max_episode_steps == 500
     assert gym.spec("sb3_adc/LidarObstacleCourseNoisy-v1").max_episode_steps == 500
+    assert gym.spec("sb3_adc/LidarObstacleCourseSpeed-v1").max_episode_steps == 500
     assert gym.spec("sb3_adc/HighwayObstacle-v0").max_episode_steps == 200
 
 
@@ -82,7 +84,8 @@ def test_sb3_check_env(env_id):
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_algorithms_run_a_few_hundred_steps(env_id, algorithm):
     env = gym.make(env_id)
-    noise = EpsilonGaussianNoise(np.zeros(1), 0.3 * np.ones(1), decay_steps=200)
+    n_actions = env.action_space.shape[0]
+    noise = EpsilonGaussianNoise(np.zeros(n_actions), 0.3 * np.ones(n_actions), decay_steps=200)
     model = algorithm(
         "MlpPolicy",
         env,
