@@ -32,7 +32,7 @@ class Task:
     One row: its ``label``; what the cells measure with the budget (``metric``); the ``summary`` file, relative to
     ``benchmarks/results``: an experiment's ``summary.csv`` (a row per ``config`` with P(ADC > config)) or, with
     ``env``, its ``test_summary.csv`` (a row per ``env``, test set and ``config``, with P(reference > config) on the
-    held-out layouts); and ``configs``, algorithm -> configuration (an algorithm not run is absent).
+    ``test_set``); and ``configs``, algorithm -> configuration (an algorithm not run is absent).
     """
 
     label: str
@@ -40,6 +40,7 @@ class Task:
     summary: str
     configs: dict[str, str]
     env: str = ""
+    test_set: str = HELD_OUT
 
 
 SHIPPED = {"ADC": "adc", "DDPG": "ddpg", "TD3": "td3", "SAC": "sac"}
@@ -95,7 +96,7 @@ def task_numbers(task: Task, results: Path) -> tuple[dict[str, Interval], dict[s
     probabilities: dict[str, Interval] = {}
     for algo, config in task.configs.items():
         if task.env:
-            row = only(rows, env=task.env, config=config, test_set=HELD_OUT)
+            row = only(rows, env=task.env, config=config, test_set=task.test_set)
             scores[algo] = triple(row, "iqm", "iqm_ci_low", "iqm_ci_high")
             if algo != "ADC":
                 assert row["reference"] == task.configs["ADC"], f"{config} is compared with {row['reference']}"
