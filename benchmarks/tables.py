@@ -60,6 +60,15 @@ TASKS = (
     Task("Lidar course, kinematic robot, noisy lidar", LIDAR, GRIDS, SHIPPED, NOISY),
     Task("Lidar course, wheeled robot", LIDAR, GRIDS, WHEELED, CLEAN),
     Task("Lidar course, wheeled robot, noisy lidar", LIDAR, GRIDS, WHEELED, NOISY),
+    # No entry is tuned on the highway (equal tuning: none); experiments/highway_obstacle.yml.
+    Task(
+        "Highway obstacles",
+        "success on 50 held-out roads (30,000 steps)",
+        "highway_obstacle/test_summary.csv",
+        SHIPPED,
+        "sb3_adc/HighwayObstacle-v0",
+        "held-out roads",
+    ),
 )
 
 #: (estimate, CI low, CI high)
