@@ -4,8 +4,9 @@
 (bodies reused across resets, the layout's checks vectorised): for the layout seeds 0 to 4, the course's geometry
 (walls, obstacles, start, corridor), a fan of probe rays cast in its pybullet world from a few points of the centre
 line, and the first steps of an episode under a fixed steering sequence (observations, ids of what the rays met,
-collisions). Large arrays are kept as the SHA-256 of their float64 bytes (little-endian, C order), small ones as
-numbers (JSON keeps a float exactly). Every value must come out exactly the same, whatever the environment did
+collisions). Large arrays are kept as the SHA-256 of their float64 bytes rounded to 1e-9 (little-endian, C order:
+numpy's vectorised sin and cos differ in the last bit from one CPU to another), small ones as numbers (JSON keeps a
+float exactly). Every value must come out the same (floats to 1e-9), whatever the environment did
 before: a fresh environment, or one that has driven other layouts first.
 
 Regenerate the data (only when a layout or the world changes on purpose, with a version bump)::
@@ -43,9 +44,10 @@ PROBE_FRACTIONS = (0.0, 0.25, 0.5, 0.75)
 N_STEPS = 80
 
 
-def digest(values: Any) -> str:
-    """SHA-256 of an array's float64 values (little-endian, C order)."""
-    return hashlib.sha256(np.ascontiguousarray(values, dtype="<f8").tobytes()).hexdigest()
+def digest(values: Any, decimals: int = 9) -> str:
+    """SHA-256 of an array's float64 values rounded to ``decimals`` (little-endian, C order), the same on every CPU."""
+    rounded = np.round(np.asarray(values, dtype=float), decimals) + 0.0  # + 0.0: -0.0 and 0.0 hash the same
+    return hashlib.sha256(np.ascontiguousarray(rounded, dtype="<f8").tobytes()).hexdigest()
 
 
 def steering() -> np.ndarray:
@@ -109,7 +111,7 @@ def episode_record(env: gym.Env[np.ndarray, np.ndarray]) -> dict[str, Any]:
             break
     return {
         "first_observation": observations[0],
-        "observations": digest(observations),
+        "observations": digest(observations, decimals=6),  # float32 values: 1e-6
         "last_observation": observations[-1],
         "ray_bodies": ray_bodies,
         "collisions": collisions,
@@ -166,11 +168,36 @@ def expected_data() -> dict[str, Any]:
 
 
 def assert_same(actual: dict[str, Any], expected: dict[str, Any], where: str) -> None:
-    """Equal key by key, floats exactly (a JSON round trip of the actual record, as the data went through one)."""
+    """Equal key by key, floats to 1e-9 (the last bit of numpy's sin and cos depends on the CPU), the rest exactly."""
     actual = json.loads(json.dumps(actual))
     assert actual.keys() == expected.keys(), where
     for key in expected:
-        assert actual[key] == expected[key], f"{where}: {key}"
+        if key == "episode":
+            assert_same_rays(actual[key].pop("ray_bodies"), expected[key]["ray_bodies"], where)
+            expected = {**expected, key: {k: v for k, v in expected[key].items() if k != "ray_bodies"}}
+        assert close(actual[key], expected[key]), f"{where}: {key}: {actual[key]} != {expected[key]}"
+
+
+def assert_same_rays(actual: list[list[int]], expected: list[list[int]], where: str) -> None:
+    """
+    The bodies each ray met, equal but for a few rays that end where two bodies meet (the same distance either way:
+    which one pybullet reports then depends on the CPU's last bit). 1 ray in 200 at most.
+    """
+    assert list(map(len, actual)) == list(map(len, expected)), where
+    n_rays = sum(map(len, expected))
+    differing = sum(a != e for row_a, row_e in zip(actual, expected, strict=True) for a, e in zip(row_a, row_e, strict=True))
+    assert differing <= n_rays // 200, f"{where}: {differing} of {n_rays} rays met other bodies"
+
+
+def close(actual: Any, expected: Any) -> bool:
+    """Nested lists and dicts equal, floats to 1e-9."""
+    if isinstance(expected, float) and isinstance(actual, float | int):
+        return math.isclose(actual, expected, rel_tol=1e-9, abs_tol=1e-9)
+    if isinstance(expected, list) and isinstance(actual, list):
+        return len(actual) == len(expected) and all(map(close, actual, expected))
+    if isinstance(expected, dict) and isinstance(actual, dict):
+        return actual.keys() == expected.keys() and all(close(actual[k], expected[k]) for k in expected)
+    return bool(actual == expected)
 
 
 @pytest.mark.parametrize("layout_seed", LAYOUT_SEEDS)
