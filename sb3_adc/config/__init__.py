@@ -1,8 +1,7 @@
 """
-RL-Zoo-format hyperparameter files, read safely: see :mod:`sb3_adc.config.loader`.
-
-``load_hyperparams("adc", "Pendulum-v1")`` reads the shipped ``adc.yml`` (or ``conf_file``) and returns an
-:class:`ExperimentConfig` whose values are Python objects; nothing in a file is ever executed.
+RL-Zoo-format hyperparameter files, read safely (:mod:`sb3_adc.config.loader`): ``load_hyperparams("adc",
+"Pendulum-v1")`` reads the shipped ``adc.yml`` (or ``conf_file``) and returns an :class:`ExperimentConfig` whose values
+are Python objects; nothing in a file is ever executed.
 """
 
 from sb3_adc.config.algorithms import ALGORITHMS, get_algorithm
@@ -20,24 +19,7 @@ from sb3_adc.config.loader import (
     select_entry,
 )
 
-__all__ = [
-    "ALGORITHMS",
-    "CALLBACKS",
-    "ENV_WRAPPERS",
-    "EXPRESSION_NAMES",
-    "POLICIES",
-    "REPLAY_BUFFERS",
-    "AllowList",
-    "ExperimentConfig",
-    "HyperparamsError",
-    "NoiseSpec",
-    "check_env_id",
-    "get_algorithm",
-    "load_hyperparams",
-    "packaged_hyperparams_file",
-    "parse_expression",
-    "parse_overrides",
-    "read_hyperparams_file",
-    "resolve_entry",
-    "select_entry",
-]
+__all__ = ["ALGORITHMS", "CALLBACKS", "ENV_WRAPPERS", "EXPRESSION_NAMES", "POLICIES", "REPLAY_BUFFERS", "AllowList"]
+__all__ += ["ExperimentConfig", "HyperparamsError", "NoiseSpec", "check_env_id", "get_algorithm", "load_hyperparams"]
+__all__ += ["packaged_hyperparams_file", "parse_expression", "parse_overrides", "read_hyperparams_file", "resolve_entry"]
+__all__ += ["select_entry"]

@@ -8,10 +8,9 @@ from sb3_adc.config.allowlists import AllowList
 from sb3_adc.config.errors import HyperparamsError
 
 #: ``--algo`` name -> algorithm class. ``ddpg`` is SB3's DDPG with an optional ``critic_learning_rate`` and averaged
-#: actor (:class:`~sb3_adc.baselines.SplitRateDDPG`, identical to SB3's DDPG without them); ``td3`` is SB3's TD3 with an
-#: optional averaged actor (:class:`~sb3_adc.baselines.AveragedActorTD3`, ``policy_kwargs`` ``actor_average_tau``,
-#: identical to SB3's TD3 without it); ``tqc`` and ``crossq`` are sb3-contrib's TQC and CrossQ (the ``zoo`` or
-#: ``experiment`` extra). Add your own with
+#: actor (:class:`~sb3_adc.baselines.SplitRateDDPG`), ``td3`` SB3's TD3 with an optional averaged actor
+#: (:class:`~sb3_adc.baselines.AveragedActorTD3`, ``policy_kwargs`` ``actor_average_tau``), both identical to SB3's
+#: without them; ``tqc`` and ``crossq`` are sb3-contrib's (the ``zoo`` or ``experiment`` extra). Add your own with
 #: ``ALGORITHMS.add("name", AlgorithmClass)`` (and a ``name.yml`` hyperparameter file).
 ALGORITHMS = AllowList(
     "algorithm",
@@ -32,8 +31,7 @@ def get_algorithm(name: str, source: str = "command line", key: str = "--algo") 
     """
     The algorithm class of an ``--algo`` name.
 
-    :param name: The name (``adc``, ``ddpg``, ``td3``, ``sac``, ``tqc``, ``crossq``, ``dqn``, ``vanilla_ac``, or one
-        added to :data:`ALGORITHMS`)
+    :param name: The name (``adc``, ``ddpg``, ``td3``, ``sac``, ... or one added to :data:`ALGORITHMS`)
     :param source: Where the name was read, for the error message
     :param key: The option or key that gave the name, for the error message
     :raises HyperparamsError: for an unknown name (the message lists the accepted ones)
@@ -42,14 +40,3 @@ def get_algorithm(name: str, source: str = "command line", key: str = "--algo") 
     if not (isinstance(algorithm, type) and issubclass(algorithm, BaseAlgorithm)):
         raise HyperparamsError(source, key, f"{name!r} is registered as {algorithm!r}, not an SB3 algorithm class")
     return algorithm
-
-
-def is_adc(algorithm_class: type[BaseAlgorithm]) -> bool:
-    """
-    Whether the class is ADC (or a subclass): it then accepts ADC's top-level policy keys.
-
-    :param algorithm_class: The algorithm
-    """
-    from sb3_adc.adc import ADC
-
-    return issubclass(algorithm_class, ADC)

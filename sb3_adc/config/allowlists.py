@@ -1,15 +1,12 @@
 """
-The names a hyperparameter file may refer to.
-
-A configuration file never makes Python import or run what it names: every class it can reach is listed
-here, as ``name -> "module:attribute"``, and imported by this package only. Add your own classes from
-Python (not from a file) with :meth:`AllowList.add`, for example
-``ENV_WRAPPERS.add("my_pkg.MyWrapper", MyWrapper)`` before calling the loader.
+The names a hyperparameter file may refer to: every class a file can reach is listed here as
+``name -> "module:attribute"``, imported by this package only. Add your own from Python (not from a file) with
+:meth:`AllowList.add`, for example ``ENV_WRAPPERS.add("my_pkg.MyWrapper", MyWrapper)`` before calling the loader.
 """
 
 from __future__ import annotations
 
-import importlib
+import pkgutil
 from collections.abc import Iterator
 
 from sb3_adc.config.errors import HyperparamsError
@@ -34,7 +31,7 @@ class AllowList:
         return name in self._targets
 
     def __iter__(self) -> Iterator[str]:
-        return iter(sorted(self._targets))
+        return iter(self.names())
 
     def names(self) -> list[str]:
         """The accepted names, sorted."""
@@ -70,101 +67,57 @@ class AllowList:
         :raises HyperparamsError: if the name is not in the list
         """
         if name not in self._targets:
-            raise HyperparamsError(
-                source, key, f"unknown {self.kind} {name!r}; accepted: {', '.join(self.names())}", expression=name
-            )
+            accepted = ", ".join(self.names())
+            raise HyperparamsError(source, key, f"unknown {self.kind} {name!r}; accepted: {accepted}", expression=name)
         target = self._targets[name]
-        if not isinstance(target, str):
-            return target
-        module_name, _, attribute = target.partition(":")
-        resolved = getattr(importlib.import_module(module_name), attribute)
-        self._targets[name] = resolved
-        return resolved
+        if isinstance(target, str):  # imported on first use
+            target = self._targets[name] = pkgutil.resolve_name(target)
+        return target
 
 
-def _prefixed(prefixes: tuple[str, ...], module: str, attributes: tuple[str, ...]) -> dict[str, str]:
-    return {f"{prefix}{attribute}": f"{module}:{attribute}" for prefix in prefixes for attribute in attributes}
+def _prefixed(module: str, attributes: str, prefixes: tuple[str, ...] | None = None) -> dict[str, str]:
+    """``prefix + attribute -> "module:attribute"`` for each of the space-separated attributes (prefix: ``module.``)."""
+    prefixes = prefixes or (f"{module}.",)
+    return {f"{prefix}{attribute}": f"{module}:{attribute}" for prefix in prefixes for attribute in attributes.split()}
 
 
-_ACTIVATIONS = (
-    "ReLU",
-    "Tanh",
-    "ELU",
-    "LeakyReLU",
-    "SELU",
-    "SiLU",
-    "GELU",
-    "Sigmoid",
-    "Softplus",
-    "Mish",
-    "Hardtanh",
-    "Identity",
-)
-_OPTIMIZERS = ("Adam", "AdamW", "SGD", "RMSprop")
-_FEATURES_EXTRACTORS = ("FlattenExtractor", "NatureCNN", "CombinedExtractor")
-
+_ACTIVATIONS = "ReLU Tanh ELU LeakyReLU SELU SiLU GELU Sigmoid Softplus Mish Hardtanh Identity"
+_TORCH_LAYERS = "stable_baselines3.common.torch_layers"
 #: Names usable inside expressions (``policy_kwargs``, ``replay_buffer_kwargs``, ``normalize`` strings):
 #: torch activation functions and optimizers, SB3 features extractors and optimizers.
 EXPRESSION_NAMES = AllowList(
     "name",
     {
-        **_prefixed(("nn.", "th.nn.", "torch.nn."), "torch.nn", _ACTIVATIONS),
-        **_prefixed(("th.optim.", "torch.optim."), "torch.optim", _OPTIMIZERS),
-        **_prefixed(
-            ("", "stable_baselines3.common.torch_layers."), "stable_baselines3.common.torch_layers", _FEATURES_EXTRACTORS
-        ),
-        "RMSpropTFLike": "stable_baselines3.common.sb2_compat.rmsprop_tf_like:RMSpropTFLike",
+        **_prefixed("torch.nn", _ACTIVATIONS, ("nn.", "th.nn.", "torch.nn.")),
+        **_prefixed("torch.optim", "Adam AdamW SGD RMSprop", ("th.optim.", "torch.optim.")),
+        **_prefixed(_TORCH_LAYERS, "FlattenExtractor NatureCNN CombinedExtractor", ("", f"{_TORCH_LAYERS}.")),
+        **_prefixed("stable_baselines3.common.sb2_compat.rmsprop_tf_like", "RMSpropTFLike", ("",)),
     },
 )
-
 #: Values of ``replay_buffer_class``.
 REPLAY_BUFFERS = AllowList(
     "replay buffer class",
     {
-        "ReplayBuffer": "stable_baselines3.common.buffers:ReplayBuffer",
-        "HerReplayBuffer": "stable_baselines3:HerReplayBuffer",
-        "stable_baselines3.common.buffers.ReplayBuffer": "stable_baselines3.common.buffers:ReplayBuffer",
-        "stable_baselines3.HerReplayBuffer": "stable_baselines3:HerReplayBuffer",
+        **_prefixed("stable_baselines3.common.buffers", "ReplayBuffer", ("", "stable_baselines3.common.buffers.")),
+        **_prefixed("stable_baselines3", "HerReplayBuffer", ("", "stable_baselines3.")),
     },
 )
-
 #: Values of ``env_wrapper`` (Gymnasium wrappers applied to each environment, in order).
 ENV_WRAPPERS = AllowList(
     "environment wrapper",
     {
-        "sb3_adc_envs.wrappers.ClearanceShaping": "sb3_adc_envs.wrappers:ClearanceShaping",
-        "sb3_adc_envs.wrappers.DiscretizedActions": "sb3_adc_envs.wrappers:DiscretizedActions",
-        "sb3_adc_envs.wrappers.UniformObservationNoise": "sb3_adc_envs.wrappers:UniformObservationNoise",
-        "sb3_contrib.common.wrappers.TimeFeatureWrapper": "sb3_contrib.common.wrappers:TimeFeatureWrapper",
-        **{
-            f"gymnasium.wrappers.{name}": f"gymnasium.wrappers:{name}"
-            for name in (
-                "ClipAction",
-                "RescaleAction",
-                "FlattenObservation",
-                "TimeLimit",
-                "FrameStackObservation",
-            )
-        },
+        **_prefixed("sb3_adc_envs.wrappers", "ClearanceShaping DiscretizedActions UniformObservationNoise"),
+        **_prefixed("sb3_contrib.common.wrappers", "TimeFeatureWrapper"),
+        **_prefixed("gymnasium.wrappers", "ClipAction RescaleAction FlattenObservation TimeLimit FrameStackObservation"),
     },
 )
-
 #: Values of ``callback`` (SB3 callbacks added to training).
 CALLBACKS = AllowList(
     "callback",
     {
-        **{
-            f"stable_baselines3.common.callbacks.{name}": f"stable_baselines3.common.callbacks:{name}"
-            for name in ("CheckpointCallback", "StopTrainingOnMaxEpisodes", "LogEveryNTimesteps")
-        },
-        "sb3_adc.diagnostics.CriticDiagnosticsCallback": "sb3_adc.diagnostics:CriticDiagnosticsCallback",
+        **_prefixed("stable_baselines3.common.callbacks", "CheckpointCallback StopTrainingOnMaxEpisodes LogEveryNTimesteps"),
+        **_prefixed("sb3_adc.diagnostics", "CriticDiagnosticsCallback"),
     },
 )
-
 #: ``policy`` values besides the algorithm's own aliases (``MlpPolicy``, ``CnnPolicy``, ...).
-POLICIES = AllowList(
-    "policy",
-    {
-        "sb3_adc.baselines.DuelingDQNPolicy": "sb3_adc.baselines.dueling_dqn:DuelingDQNPolicy",
-    },
-)
+POLICIES = AllowList("policy", {"sb3_adc.baselines.DuelingDQNPolicy": "sb3_adc.baselines.dueling_dqn:DuelingDQNPolicy"})

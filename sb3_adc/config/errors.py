@@ -9,37 +9,25 @@ from typing import Any
 MAX_SHOWN_CHARACTERS = 200
 
 _SHORT_REPR = reprlib.Repr()
-_SHORT_REPR.maxlevel = 3
-_SHORT_REPR.maxstring = 60
-_SHORT_REPR.maxother = 60
+_SHORT_REPR.maxlevel, _SHORT_REPR.maxstring, _SHORT_REPR.maxother = 3, 60, 60
 
 
 def short_repr(value: Any) -> str:
     """
-    A bounded representation of ``value`` for an error message: at most 3 levels and a few elements of nested
-    collections, then at most :data:`MAX_SHOWN_CHARACTERS` characters. Unlike ``repr``, its cost does not grow with
-    the value: a YAML alias bomb (a few hundred bytes whose collections share children) is not expanded.
+    A bounded representation of ``value`` for an error message (at most 3 levels and a few elements of nested
+    collections, then :data:`MAX_SHOWN_CHARACTERS` characters), whose cost does not grow with a YAML alias bomb.
 
     :param value: The value to show
     """
-    if isinstance(value, str):  # an expression as written: shown whole up to the limit
-        return _shorten(repr(value))
-    return _shorten(_SHORT_REPR.repr(value))
-
-
-def _shorten(text: str) -> str:
-    if len(text) <= MAX_SHOWN_CHARACTERS:
-        return text
+    text = repr(value) if isinstance(value, str) else _SHORT_REPR.repr(value)  # an expression: whole up to the limit
     half = MAX_SHOWN_CHARACTERS // 2
-    return f"{text[:half]}...{text[-half:]}"
+    return text if len(text) <= MAX_SHOWN_CHARACTERS else f"{text[:half]}...{text[-half:]}"
 
 
 class HyperparamsError(ValueError):
     """
-    A hyperparameter file or one of its values is invalid.
-
-    The message names where the problem is (``source``: the file and, when known, the entry), the key,
-    and the offending value or expression (shortened to :data:`MAX_SHOWN_CHARACTERS`), then says what is accepted.
+    A hyperparameter file or one of its values is invalid: the message names the source, the key and the offending
+    value or expression, then says what is accepted.
 
     :param source: Where the value comes from: a file path, optionally followed by ``[entry]``
         (for example ``hyperparams/adc.yml [Pendulum-v1]``), or ``command line``
@@ -50,10 +38,7 @@ class HyperparamsError(ValueError):
     """
 
     def __init__(self, source: str, key: str | None, problem: str, expression: str | None = None):
-        self.source = source
-        self.key = key
-        self.problem = problem
-        self.expression = expression
+        self.source, self.key, self.problem, self.expression = source, key, problem, expression
         location = source if key is None else f"{source}: `{key}`"
         offending = "" if expression is None else f"; offending expression: {short_repr(expression)}"
         super().__init__(f"{location}: {problem}{offending}")

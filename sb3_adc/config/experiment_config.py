@@ -22,8 +22,7 @@ class NoiseSpec:
     Exploration noise of an off-policy algorithm (``noise_type`` and its keys).
 
     :param noise_type: ``normal``, ``ornstein-uhlenbeck`` or ``epsilon-normal``
-    :param std: Standard deviation, in SB3's scaled action units ([-1, 1]): one number, or one per action
-        dimension
+    :param std: Standard deviation, in SB3's scaled action units ([-1, 1]): one number, or one per action dimension
     :param epsilon_decay_steps: ``epsilon-normal``: steps (per environment) over which epsilon decays
     :param epsilon_initial: ``epsilon-normal``: epsilon at the start
     :param epsilon_final: ``epsilon-normal``: epsilon after ``epsilon_decay_steps``
@@ -46,33 +45,23 @@ class NoiseSpec:
             raise ValueError(f"`noise_type: {self.noise_type}` needs a Box action space, got {action_space!r}.")
         n_actions = int(np.prod(action_space.shape))
         std = np.asarray(self.std, dtype=np.float64)
-        if std.ndim == 0:
-            sigma = np.full(n_actions, float(std))
-        elif std.shape == (n_actions,):
-            sigma = std.copy()
-        else:
+        if std.ndim != 0 and std.shape != (n_actions,):
             raise ValueError(f"`noise_std` has {std.size} values, the action space has {n_actions} dimensions.")
-        mean = np.zeros(n_actions)
+        mean, sigma = np.zeros(n_actions), np.broadcast_to(std, (n_actions,)).copy()
         if self.noise_type == "normal":
             return NormalActionNoise(mean=mean, sigma=sigma)
         if self.noise_type == "ornstein-uhlenbeck":
             return OrnsteinUhlenbeckActionNoise(mean=mean, sigma=sigma)
-        return EpsilonGaussianNoise(
-            mean=mean,
-            sigma=sigma,
-            decay_steps=self.epsilon_decay_steps,
-            initial_epsilon=self.epsilon_initial,
-            final_epsilon=self.epsilon_final,
-        )
+        epsilons: dict[str, Any] = {"initial_epsilon": self.epsilon_initial, "final_epsilon": self.epsilon_final}
+        return EpsilonGaussianNoise(mean=mean, sigma=sigma, decay_steps=self.epsilon_decay_steps, **epsilons)
 
 
 @dataclass
 class ExperimentConfig:
     """
-    Everything one hyperparameter entry says, resolved into Python objects.
-
-    Build it with :func:`~sb3_adc.config.loader.load_hyperparams` (from the packaged files or your own) or
-    :func:`~sb3_adc.config.loader.resolve_entry`; nothing in it was produced by executing configuration text.
+    Everything one hyperparameter entry says, resolved into Python objects (by
+    :func:`~sb3_adc.config.loader.load_hyperparams` or :func:`~sb3_adc.config.loader.resolve_entry`, never by executing
+    configuration text).
 
     :param algo: The algorithm's name (``adc``, ``ddpg``, ...)
     :param env_id: The Gymnasium id of the environment

@@ -1,16 +1,9 @@
 """
-Reading RL-Zoo-format hyperparameter files safely.
-
-One YAML file per algorithm (``adc.yml``, ``ddpg.yml``, ...), whose top-level keys are environment ids and
-an optional ``default`` entry; the keys of ``default`` apply to every environment unless its own entry sets
-them (a key of the environment's entry replaces the default's value as a whole). YAML is read with
-``yaml.safe_load`` semantics (no Python tags), duplicate keys are errors, and Python-like strings (such as
-``policy_kwargs: "dict(net_arch=[64, 64])"``) go through the restricted parser of
-:mod:`sb3_adc.config.expressions`: nothing from a file is executed or imported by name outside the
-allow-lists of :mod:`sb3_adc.config.allowlists`.
-
-Files are also bounded, so that a small hostile file cannot exhaust memory or time
-(:mod:`sb3_adc.config.yaml_files`, which names the limit a file is over).
+Reading RL-Zoo-format hyperparameter files safely: one YAML file per algorithm (``adc.yml``, ...) whose top-level keys
+are environment ids and an optional ``default`` entry, whose keys apply to every environment unless its own entry sets
+them. Files are read within the bounds of :mod:`sb3_adc.config.yaml_files`; Python-like strings (``policy_kwargs:
+"dict(net_arch=[64, 64])"``) go through the restricted parser of :mod:`sb3_adc.config.expressions`: nothing from a
+file is executed or imported by name outside the allow-lists of :mod:`sb3_adc.config.allowlists`.
 """
 
 from __future__ import annotations
@@ -25,12 +18,12 @@ import gymnasium as gym
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.utils import LinearSchedule
 
-from sb3_adc.config.algorithms import get_algorithm, is_adc
+from sb3_adc.config.algorithms import get_algorithm
 from sb3_adc.config.allowlists import CALLBACKS, ENV_WRAPPERS, EXPRESSION_NAMES, POLICIES, REPLAY_BUFFERS, AllowList
 from sb3_adc.config.errors import HyperparamsError, short_repr
 from sb3_adc.config.experiment_config import ExperimentConfig, NoiseSpec
 from sb3_adc.config.expressions import parse_expression
-from sb3_adc.config.schema import ADC_POLICY_KEYS, EPSILON_NOISE_KEYS, accepted_keys, constructor_keys, policy_kwargs_keys
+from sb3_adc.config.schema import ADC_POLICY_KEYS, EPSILON_NOISE_KEYS, entry_keys
 from sb3_adc.config.validators import Validator
 from sb3_adc.config.yaml_files import MAX_FILE_BYTES, load_yaml_bounded, read_yaml_file
 
@@ -50,8 +43,7 @@ def packaged_hyperparams_file(name: str) -> str:
     """
     Path of a shipped hyperparameter file (inside the installed package).
 
-    :param name: The file's name without ``.yml``: an algorithm's name (``adc``, the tuned defaults), or
-        ``paper/{algo}`` for the ADC paper's tables
+    :param name: The file's name without ``.yml``: an algorithm's name, or ``paper/{algo}`` for the paper's tables
     """
     return str(resources.files(HYPERPARAMS_PACKAGE).joinpath(*f"{name}.yml".split("/")))
 
@@ -68,19 +60,17 @@ def shipped_hyperparams_files() -> list[str]:
 
 def find_hyperparams_file(conf_file: str) -> str:
     """
-    The path of a hyperparameter file given as a path, or as the name of a shipped file (``adc``, or another
-    ``*.yml`` of :data:`HYPERPARAMS_PACKAGE`, or ``paper/adc``, without the extension).
+    The path of a hyperparameter file given as a path, or as the name of a shipped file (``adc``, ``paper/adc``).
 
     :param conf_file: A path, or the name of a shipped file
     :raises HyperparamsError: if it is neither
     """
     if os.path.isfile(conf_file):
         return conf_file
-    if conf_file in shipped_hyperparams_files():
+    shipped = shipped_hyperparams_files()
+    if conf_file in shipped:
         return packaged_hyperparams_file(conf_file)
-    raise HyperparamsError(
-        conf_file, None, f"hyperparameter file not found (nor a shipped file: {', '.join(shipped_hyperparams_files())})"
-    )
+    raise HyperparamsError(conf_file, None, f"hyperparameter file not found (nor a shipped file: {', '.join(shipped)})")
 
 
 def read_hyperparams_file(path: str) -> dict[str, Any]:
@@ -88,8 +78,8 @@ def read_hyperparams_file(path: str) -> dict[str, Any]:
     Read a hyperparameter file: a YAML mapping of entry names (environment ids, ``default``) to mappings.
 
     :param path: The file
-    :raises HyperparamsError: if the file is missing, is not valid UTF-8 YAML, is over a limit of
-        :mod:`sb3_adc.config.yaml_files`, or does not have that structure
+    :raises HyperparamsError: if the file is missing, is not UTF-8 YAML within the limits of
+        :mod:`sb3_adc.config.yaml_files`, or lacks that structure
     """
     if not os.path.isfile(path):
         raise HyperparamsError(path, None, "hyperparameter file not found")
@@ -102,20 +92,19 @@ def read_hyperparams_file(path: str) -> dict[str, Any]:
         if not isinstance(name, str):
             raise HyperparamsError(path, None, f"entry names must be environment ids (strings), got {short_repr(name)}")
         if not isinstance(entry, dict):
-            raise HyperparamsError(
-                f"{path} [{name}]", None, f"an entry must be a mapping of keys to values, got {short_repr(entry)}"
-            )
+            problem = f"an entry must be a mapping of keys to values, got {short_repr(entry)}"
+            raise HyperparamsError(f"{path} [{name}]", None, problem)
     return content
 
 
 def select_entry(content: Mapping[str, Any], env_id: str, path: str) -> tuple[dict[str, Any], str]:
     """
-    The entry of an environment, with the ``default`` entry merged under it.
+    The entry of an environment, with the ``default`` entry merged under it, and its source (``path [env_id]`` or
+    ``path [default]``).
 
     :param content: The file's content (see :func:`read_hyperparams_file`)
     :param env_id: The environment id
     :param path: The file, for error messages
-    :return: The merged entry and its source (``path [env_id]`` or ``path [default]``)
     :raises HyperparamsError: if the file has neither an entry for ``env_id`` nor a ``default`` entry
     """
     default = dict(content.get(DEFAULT_ENTRY) or {})
@@ -124,16 +113,14 @@ def select_entry(content: Mapping[str, Any], env_id: str, path: str) -> tuple[di
     if DEFAULT_ENTRY in content:
         return default, f"{path} [{DEFAULT_ENTRY}]"
     entries = sorted(name for name in content if name != DEFAULT_ENTRY)
-    raise HyperparamsError(
-        path, None, f"no entry for environment {env_id!r} and no {DEFAULT_ENTRY!r} entry; entries: {', '.join(entries)}"
-    )
+    problem = f"no entry for environment {env_id!r} and no {DEFAULT_ENTRY!r} entry; entries: {', '.join(entries)}"
+    raise HyperparamsError(path, None, problem)
 
 
 def parse_overrides(items: Sequence[str], source: str = "command line") -> dict[str, Any]:
     """
-    Parse ``key:value`` overrides (``-params``). Each value is read as YAML, exactly as if it were written
-    ``key: value`` in the file: ``learning_rate:0.001``, ``train_freq:[1,episode]``,
-    ``policy_kwargs:"dict(net_arch=[64, 64])"``.
+    Parse ``key:value`` overrides (``-params``), each value read as YAML as if written ``key: value`` in the file:
+    ``learning_rate:0.001``, ``train_freq:[1,episode]``, ``policy_kwargs:"dict(net_arch=[64, 64])"``.
 
     :param items: The ``key:value`` strings
     :param source: Where they come from, for error messages
@@ -162,12 +149,8 @@ def check_env_id(env_id: str) -> None:
     from sb3_adc_envs.registration import ENV_SPECS
 
     close = difflib.get_close_matches(env_id, list(gym.registry), n=5, cutoff=0.5)
-    raise HyperparamsError(
-        "command line",
-        "--env",
-        f"unknown environment id {env_id!r}; closest registered ids: {', '.join(close) or 'none'}; "
-        f"sb3-adc's environments: {', '.join(sorted(ENV_SPECS))}",
-    )
+    known = f"closest registered ids: {', '.join(close) or 'none'}; sb3-adc's environments: {', '.join(sorted(ENV_SPECS))}"
+    raise HyperparamsError("command line", "--env", f"unknown environment id {env_id!r}; {known}")
 
 
 def load_hyperparams(
@@ -180,10 +163,9 @@ def load_hyperparams(
     """
     Load and resolve the hyperparameters of ``algo`` on ``env_id``.
 
-    :param algo: The algorithm's name (``adc``, ``ddpg``, ``td3``, ``sac``, ``dqn``, ``vanilla_ac``)
+    :param algo: The algorithm's name (``adc``, ``ddpg``, ``td3``, ``sac``, ``dqn``, ``vanilla_ac``, ...)
     :param env_id: The environment id
-    :param conf_file: A hyperparameter file, or the name of a shipped one (see :func:`find_hyperparams_file`);
-        ``None`` uses the shipped ``{algo}.yml``
+    :param conf_file: A hyperparameter file, or a shipped one's name; ``None`` uses the shipped ``{algo}.yml``
     :param overrides: Values replacing those of the entry (see :func:`parse_overrides`)
     :param n_timesteps: Training budget replacing the entry's ``n_timesteps``
     :raises HyperparamsError: for any invalid file, entry, key or value
@@ -200,25 +182,25 @@ def load_hyperparams(
 def apply_overrides(entry: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
     """
     ``entry`` with the values of ``overrides`` (``-params``, a tuning trial's values, a benchmark's configuration).
-    The epsilon-gated noise's keys belong to ``noise_type: epsilon-normal``: an override that sets another noise
-    type drops the entry's (as the RL Zoo's ``-params noise_type:...`` replaces the noise), while epsilon keys the
-    overrides give themselves stay and are checked as usual.
+    An override that sets a ``noise_type`` other than ``epsilon-normal`` drops the entry's epsilon keys (as the RL
+    Zoo's ``-params noise_type:...`` replaces the noise); epsilon keys that the overrides give stay.
 
     :param entry: A hyperparameter entry
     :param overrides: The values replacing the entry's
     """
-    merged = {**entry, **overrides}
-    if "noise_type" in overrides and overrides["noise_type"] != "epsilon-normal":
-        for key in EPSILON_NOISE_KEYS:
-            if key not in overrides:
-                merged.pop(key, None)
-    return merged
+    other_noise = overrides.get("noise_type", "epsilon-normal") != "epsilon-normal"
+    dropped = set(EPSILON_NOISE_KEYS) - set(overrides) if other_noise else set()
+    return {key: value for key, value in {**entry, **overrides}.items() if key not in dropped}
 
 
-def _did_you_mean(name: str, accepted: Iterable[str]) -> str:
-    """A "did you mean" phrase naming the ``accepted`` names closest to a misspelt ``name``; empty if none is close."""
-    close = difflib.get_close_matches(name, sorted(accepted), n=3, cutoff=0.6)
-    return f"; did you mean {' or '.join(f'`{match}`' for match in close)}?" if close else ""
+def _reject_unknown(given: Iterable[Any], accepted: Iterable[str], source: str, what: str, prefix: str = "") -> None:
+    """Raise for the first name of ``given`` not ``accepted``, listing those and the closest ("did you mean")."""
+    accepted = sorted(accepted)
+    unknown = sorted(set(given) - set(accepted))
+    if unknown:
+        close = difflib.get_close_matches(str(unknown[0]), accepted, n=3, cutoff=0.6)
+        suggestion = f"; did you mean {' or '.join(f'`{match}`' for match in close)}?" if close else ""
+        raise HyperparamsError(source, f"{prefix}{unknown[0]}", f"unknown {what}: {', '.join(accepted)}{suggestion}")
 
 
 def resolve_entry(
@@ -232,19 +214,11 @@ def resolve_entry(
     :param entry: The entry (``default`` already merged), as read from YAML
     :param source: Where the entry comes from, for error messages
     :param n_timesteps: Training budget replacing the entry's ``n_timesteps``
-    :raises HyperparamsError: for an unknown key, a value of the wrong type or range, a missing required key,
-        or an expression outside the accepted subset
+    :raises HyperparamsError: for an unknown key, an invalid value or expression, or a missing required key
     """
     algorithm_class = get_algorithm(algo, source, "algo")
-    keys = accepted_keys(algorithm_class, adc_keys=is_adc(algorithm_class))
-    unknown = sorted(set(entry) - set(keys))
-    if unknown:
-        raise HyperparamsError(
-            source,
-            unknown[0],
-            f"unknown key for {algo} ({algorithm_class.__name__}); accepted keys: {', '.join(sorted(keys))}"
-            f"{_did_you_mean(unknown[0], keys)}",
-        )
+    keys, policy_kwargs_keys, constructor_keys = entry_keys(algorithm_class)
+    _reject_unknown(entry, keys, source, f"key for {algo} ({algorithm_class.__name__}); accepted keys")
     values = {key: keys[key](value, source, key) for key, value in entry.items()}
     if n_timesteps is not None:
         values["n_timesteps"] = keys["n_timesteps"](n_timesteps, "command line", "n_timesteps")
@@ -253,15 +227,10 @@ def resolve_entry(
             raise HyperparamsError(source, required, "required key missing")
     n_envs = int(values.get("n_envs", 1))
     noise = _resolve_noise(values, source, n_envs)
-
     model_kwargs: dict[str, Any] = {"policy": _resolve_policy(values["policy"], algorithm_class, source)}
-    policy_kwargs = _resolve_policy_kwargs(values, source, policy_kwargs_keys(algorithm_class, is_adc(algorithm_class)))
-    if policy_kwargs:
-        model_kwargs["policy_kwargs"] = policy_kwargs
-    for name in constructor_keys(algorithm_class):
-        if name in values:
-            model_kwargs[name] = _model_value(name, values[name], source)
-
+    policy_kwargs = _resolve_policy_kwargs(values, source, policy_kwargs_keys)
+    model_kwargs.update({"policy_kwargs": policy_kwargs} if policy_kwargs else {})
+    model_kwargs.update({name: _model_value(name, values[name], source) for name in constructor_keys if name in values})
     return ExperimentConfig(
         algo=algo,
         env_id=env_id,
@@ -291,19 +260,11 @@ def _resolve_noise(values: dict[str, Any], source: str, n_envs: int) -> NoiseSpe
         return None
     if "noise_std" not in values:
         raise HyperparamsError(source, "noise_std", f"required with `noise_type: {noise_type}`")
-    if noise_type != "epsilon-normal":
-        return NoiseSpec(noise_type, values["noise_std"])
-    # Default: epsilon reaches its final value half-way through training (counted per environment).
-    values.setdefault("epsilon_decay_steps", values["n_timesteps"] // n_envs // 2)
-    values.setdefault("epsilon_initial", 1.0)
-    values.setdefault("epsilon_final", 0.0)
-    return NoiseSpec(
-        noise_type,
-        values["noise_std"],
-        epsilon_decay_steps=values["epsilon_decay_steps"],
-        epsilon_initial=values["epsilon_initial"],
-        epsilon_final=values["epsilon_final"],
-    )
+    if noise_type == "epsilon-normal":
+        # Default: epsilon reaches its final value half-way through training (counted per environment).
+        defaults = {"epsilon_decay_steps": values["n_timesteps"] // n_envs // 2, "epsilon_initial": 1.0, "epsilon_final": 0.0}
+        values.update({key: values.get(key, default) for key, default in defaults.items()})
+    return NoiseSpec(noise_type, values["noise_std"], **{key: values[key] for key in EPSILON_NOISE_KEYS if key in values})
 
 
 def _resolve_policy(name: str, algorithm_class: type[BaseAlgorithm], source: str) -> str | object:
@@ -312,43 +273,30 @@ def _resolve_policy(name: str, algorithm_class: type[BaseAlgorithm], source: str
         return name
     if name in POLICIES:
         return POLICIES.resolve(name, source, "policy")
-    raise HyperparamsError(
-        source,
-        "policy",
-        f"unknown policy {name!r} for {algorithm_class.__name__}; accepted: {', '.join(aliases + POLICIES.names())}",
-    )
+    accepted = ", ".join(aliases + POLICIES.names())
+    raise HyperparamsError(source, "policy", f"unknown policy {name!r} for {algorithm_class.__name__}; accepted: {accepted}")
 
 
 def _kwargs_from(value: dict[str, Any] | str | None, source: str, key: str) -> dict[str, Any]:
     """A mapping, or an expression string that must evaluate to a mapping; class-valued keys resolved."""
-    if value is None:
-        return {}
-    if isinstance(value, str):
-        parsed = parse_expression(value, source, key)
-        if not isinstance(parsed, dict):
-            raise HyperparamsError(source, key, "must be a mapping such as dict(net_arch=[64, 64])", expression=value)
-        value = parsed
-    resolved = dict(value)
-    for name in CLASS_VALUED_KWARGS & set(resolved):
-        if isinstance(resolved[name], str):
-            resolved[name] = EXPRESSION_NAMES.resolve(resolved[name], source, f"{key}.{name}")
-    return resolved
+    parsed = parse_expression(value, source, key) if isinstance(value, str) else dict(value or {})
+    if not isinstance(parsed, dict):
+        raise HyperparamsError(source, key, "must be a mapping such as dict(net_arch=[64, 64])", expression=str(value))
+    resolve = EXPRESSION_NAMES.resolve
+    return {
+        name: resolve(item, source, f"{key}.{name}") if name in CLASS_VALUED_KWARGS and isinstance(item, str) else item
+        for name, item in parsed.items()
+    }
 
 
 def _resolve_policy_kwargs(values: dict[str, Any], source: str, checked: dict[str, Validator]) -> dict[str, Any]:
     policy_kwargs = _kwargs_from(values.get("policy_kwargs"), source, "policy_kwargs")
     for name in sorted(checked.keys() & policy_kwargs.keys()):
         policy_kwargs[name] = checked[name](policy_kwargs[name], source, f"policy_kwargs.{name}")
-    for name in ADC_POLICY_KEYS:
-        if name not in values:
-            continue
+    for name in [name for name in ADC_POLICY_KEYS if name in values]:
         if name in policy_kwargs and policy_kwargs[name] != values[name]:
-            raise HyperparamsError(
-                source,
-                name,
-                f"conflicts with policy_kwargs {name}={short_repr(policy_kwargs[name])}; set it in one place only",
-                expression=short_repr(values[name]),
-            )
+            conflict = f"conflicts with policy_kwargs {name}={short_repr(policy_kwargs[name])}; set it in one place only"
+            raise HyperparamsError(source, name, conflict, expression=short_repr(values[name]))
         policy_kwargs[name] = values[name]
     return policy_kwargs
 
@@ -366,29 +314,17 @@ def _model_value(name: str, value: Any, source: str) -> Any:
 
 
 def _resolve_classes(value: Any, allowlist: AllowList, source: str, key: str) -> list[tuple[Any, dict[str, Any]]]:
-    if value is None:
-        return []
-    if isinstance(value, list):
-        return [resolved for element in value for resolved in _resolve_classes(element, allowlist, source, key)]
-    if isinstance(value, dict):
-        ((name, kwargs),) = value.items()
-        return [(allowlist.resolve(name, source, key), dict(kwargs))]
-    return [(allowlist.resolve(value, source, key), {})]
+    if value is None or isinstance(value, list):
+        return [resolved for element in value or [] for resolved in _resolve_classes(element, allowlist, source, key)]
+    ((name, kwargs),) = value.items() if isinstance(value, dict) else [(value, {})]
+    return [(allowlist.resolve(name, source, key), dict(kwargs))]
 
 
 def _resolve_normalize(value: bool | dict[str, Any] | str, gamma: float | None, source: str) -> dict[str, Any] | None:
     if value is False:
         return None
     kwargs = {} if value is True else _kwargs_from(value, source, "normalize")
-    unknown = sorted(set(kwargs) - NORMALIZE_KEYS)
-    if unknown:
-        raise HyperparamsError(
-            source,
-            f"normalize.{unknown[0]}",
-            f"unknown VecNormalize keyword; accepted: {', '.join(sorted(NORMALIZE_KEYS))}"
-            f"{_did_you_mean(str(unknown[0]), NORMALIZE_KEYS)}",
-        )
-    if gamma is not None:
-        # As the RL Zoo: the reward normalization discounts with the algorithm's gamma.
+    _reject_unknown(kwargs, NORMALIZE_KEYS, source, "VecNormalize keyword; accepted", prefix="normalize.")
+    if gamma is not None:  # as the RL Zoo: the reward normalization discounts with the algorithm's gamma
         kwargs.setdefault("gamma", gamma)
     return kwargs

@@ -1,9 +1,7 @@
 """
-Checks of single hyperparameter values.
-
-Every validator takes ``(value, source, key)``, returns the value in its canonical form (ints for counts,
-floats for rates, ...) and raises :class:`~sb3_adc.config.errors.HyperparamsError` naming the source, the
-key and the accepted values otherwise.
+Checks of single hyperparameter values: every validator takes ``(value, source, key)`` and returns the value in its
+canonical form (ints for counts, floats for rates, ...), or raises a :class:`~sb3_adc.config.errors.HyperparamsError`
+naming the source, the key and the accepted values.
 """
 
 from __future__ import annotations
@@ -22,10 +20,45 @@ def _fail(value: Any, source: str, key: str, accepted: str) -> HyperparamsError:
     return HyperparamsError(source, key, f"expected {accepted}, got {short_repr(value)} ({type(value).__name__})")
 
 
-def _as_number(value: Any) -> float | None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+def _accepting(accepted: str, test: Callable[[Any], bool], convert: Callable[[Any], Any] = lambda value: value) -> Validator:
+    """The validator of the values that pass ``test``, returned as ``convert(value)``; ``accepted`` describes them."""
+
+    def check(value: Any, source: str, key: str) -> Any:
+        if not test(value):
+            raise _fail(value, source, key, accepted)
+        return convert(value)
+
+    return check
+
+
+def _finite(value: Any) -> float | None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         return None
     return float(value)
+
+
+def _integral(value: Any) -> int | None:
+    number = _finite(value)
+    return None if number is None or number != int(number) else int(number)
+
+
+def _positive(text: str, prefix: str) -> bool:
+    try:
+        return text.startswith(prefix) and (_finite(float(text[len(prefix) :])) or 0.0) > 0
+    except ValueError:
+        return False
+
+
+def _range(minimum: float | None, maximum: float | None, low: str = ">=") -> str:
+    bounds = [f"{low} {minimum}"] * (minimum is not None) + [f"<= {maximum}"] * (maximum is not None)
+    return f" {', '.join(bounds)}" if bounds else ""
+
+
+def _within(number: float | None, minimum: float | None, maximum: float | None, exclusive_minimum: bool = False) -> bool:
+    if number is None:
+        return False
+    above = minimum is None or number > minimum or (number == minimum and not exclusive_minimum)
+    return above and (maximum is None or number <= maximum)
 
 
 def integer(minimum: int | None = None, allowed: tuple[int, ...] = (), maximum: int | None = None) -> Validator:
@@ -37,20 +70,10 @@ def integer(minimum: int | None = None, allowed: tuple[int, ...] = (), maximum: 
     :param allowed: Values accepted besides the range (such as ``-1`` for "all")
     :param maximum: The largest accepted value (for options that size memory)
     """
-    low = "" if minimum is None else f" >= {minimum}"
-    high = "" if maximum is None else f" <= {maximum}"
-    accepted = "an integer" + low + ("," if low and high else "") + high + "".join(f" or {value}" for value in allowed)
-
-    def check(value: Any, source: str, key: str) -> int:
-        number = _as_number(value)
-        if number is None or not math.isfinite(number) or number != int(number):
-            raise _fail(value, source, key, accepted)
-        result = int(number)
-        if result in allowed or ((minimum is None or result >= minimum) and (maximum is None or result <= maximum)):
-            return result
-        raise _fail(value, source, key, accepted)
-
-    return check
+    accepted = "an integer" + _range(minimum, maximum) + "".join(f" or {value}" for value in allowed)
+    return _accepting(
+        accepted, lambda value: _integral(value) in allowed or _within(_integral(value), minimum, maximum), _integral
+    )
 
 
 def real(minimum: float | None = None, maximum: float | None = None, exclusive_minimum: bool = False) -> Validator:
@@ -61,21 +84,29 @@ def real(minimum: float | None = None, maximum: float | None = None, exclusive_m
     :param maximum: The upper bound (included)
     :param exclusive_minimum: Whether ``minimum`` itself is excluded
     """
-    low = "" if minimum is None else f" {'>' if exclusive_minimum else '>='} {minimum}"
-    high = "" if maximum is None else f" <= {maximum}"
-    accepted = "a number" + low + ("," if low and high else "") + high
+    accepted = "a number" + _range(minimum, maximum, ">" if exclusive_minimum else ">=")
+    return _accepting(accepted, lambda value: _within(_finite(value), minimum, maximum, exclusive_minimum), float)
 
-    def check(value: Any, source: str, key: str) -> float:
-        number = _as_number(value)
-        if number is None or not math.isfinite(number):
-            raise _fail(value, source, key, accepted)
-        if minimum is not None and (number < minimum or (exclusive_minimum and number == minimum)):
-            raise _fail(value, source, key, accepted)
-        if maximum is not None and number > maximum:
-            raise _fail(value, source, key, accepted)
-        return number
 
-    return check
+def choice(*options: str) -> Validator:
+    """
+    One of the given strings.
+
+    :param options: The accepted strings
+    """
+    accepted = "one of " + ", ".join(repr(option) for option in options)
+    return _accepting(accepted, lambda value: isinstance(value, str) and value in options)
+
+
+boolean = _accepting("true or false", lambda value: isinstance(value, bool))
+string = _accepting("a non-empty string", lambda value: isinstance(value, str) and value != "")
+scalar = _accepting("a number, string, boolean or null", lambda value: isinstance(value, (bool, int, float, str, type(None))))
+#: A mapping with string keys (``{}`` for ``null``).
+mapping = _accepting(
+    "a mapping with string keys",
+    lambda value: value is None or (isinstance(value, dict) and all(isinstance(name, str) for name in value)),
+    lambda value: dict(value or {}),
+)
 
 
 def layer_sizes(max_width: int, max_weights: int) -> Validator:
@@ -96,88 +127,42 @@ def layer_sizes(max_width: int, max_weights: int) -> Validator:
         sizes = [integer(1, maximum=max_width)(size, source, key) for size in value]
         weights = sum(a * b for a, b in itertools.pairwise(sizes))
         if weights > max_weights:
-            raise HyperparamsError(
-                source, key, f"expected at most {max_weights} weights between hidden layers, got {weights} for {sizes}"
-            )
+            problem = f"expected at most {max_weights} weights between hidden layers, got {weights} for {sizes}"
+            raise HyperparamsError(source, key, problem)
         return sizes
 
     return check
 
 
-def boolean(value: Any, source: str, key: str) -> bool:
-    """``true`` or ``false``."""
-    if not isinstance(value, bool):
-        raise _fail(value, source, key, "true or false")
-    return value
+def _text_or(text: Validator, other: Validator) -> Validator:
+    """``text`` validates strings, ``other`` any other value."""
+    return lambda value, source, key: (text if isinstance(value, str) else other)(value, source, key)
 
 
-def choice(*options: str) -> Validator:
-    """
-    One of the given strings.
-
-    :param options: The accepted strings
-    """
-
-    def check(value: Any, source: str, key: str) -> str:
-        if not isinstance(value, str) or value not in options:
-            raise _fail(value, source, key, "one of " + ", ".join(repr(option) for option in options))
-        return value
-
-    return check
-
-
-def string(value: Any, source: str, key: str) -> str:
-    """A non-empty string."""
-    if not isinstance(value, str) or not value:
-        raise _fail(value, source, key, "a non-empty string")
-    return value
-
-
-def mapping(value: Any, source: str, key: str) -> dict[str, Any]:
-    """A mapping with string keys (``{}`` for ``null``)."""
-    if value is None:
-        return {}
-    if not isinstance(value, dict) or not all(isinstance(name, str) for name in value):
-        raise _fail(value, source, key, "a mapping with string keys")
-    return dict(value)
-
-
-def scalar(value: Any, source: str, key: str) -> Any:
-    """A YAML scalar: a number, string, boolean or ``null``."""
-    if value is None or isinstance(value, (bool, int, float, str)):
-        return value
-    raise _fail(value, source, key, "a number, string, boolean or null")
-
-
-def learning_rate(value: Any, source: str, key: str) -> float | str:
-    """A positive number, or ``lin_<number>`` (linear decay from that number to 0 over training)."""
-    accepted = "a number > 0 or 'lin_<number>' (linear decay to 0)"
-    if isinstance(value, str):
-        prefix, _, initial = value.partition("_")
-        try:
-            number = float(initial)
-        except ValueError:
-            raise _fail(value, source, key, accepted) from None
-        if prefix != "lin" or not (math.isfinite(number) and number > 0):
-            raise _fail(value, source, key, accepted)
-        return value
-    rate = _as_number(value)
-    if rate is None or not (math.isfinite(rate) and rate > 0):
-        raise _fail(value, source, key, accepted)
-    return rate
+_LEARNING_RATE = "a number > 0 or 'lin_<number>' (linear decay to 0)"
+#: A positive number, or ``lin_<number>`` (linear decay from that number to 0 over training).
+learning_rate = _text_or(
+    _accepting(_LEARNING_RATE, lambda value: _positive(value, "lin_")),
+    _accepting(_LEARNING_RATE, lambda value: (_finite(value) or 0.0) > 0, float),
+)
+#: SAC's ``ent_coef``: a number >= 0, ``auto`` or ``auto_<initial value>``.
+entropy_coefficient = _text_or(
+    _accepting("a number >= 0, 'auto' or 'auto_<initial value>'", lambda value: value == "auto" or _positive(value, "auto_")),
+    real(0.0),
+)
+#: SAC's ``target_entropy``: a number or ``auto``.
+target_entropy = _text_or(_accepting("a number", lambda value: value == "auto"), real())
+#: A mapping, or a string such as ``"dict(net_arch=[64, 64])"`` (parsed later, never executed).
+mapping_or_expression = _text_or(lambda value, source, key: value, mapping)
 
 
 def train_freq(value: Any, source: str, key: str) -> int | list[Any]:
     """An integer >= 1 (steps), or ``[n, "step"]`` / ``[n, "episode"]``."""
-    accepted = 'an integer >= 1 or [n, "step" | "episode"]'
-    if isinstance(value, (list, tuple)):
-        if len(value) != 2 or value[1] not in ("step", "episode"):
-            raise _fail(value, source, key, accepted)
+    if isinstance(value, (list, tuple)) and len(value) == 2 and value[1] in ("step", "episode"):
         return [integer(1)(value[0], source, key), value[1]]
-    try:
-        return integer(1)(value, source, key)
-    except HyperparamsError:
-        raise _fail(value, source, key, accepted) from None
+    if isinstance(value, (list, tuple)) or (steps := _integral(value)) is None or steps < 1:
+        raise _fail(value, source, key, 'an integer >= 1 or [n, "step" | "episode"]')
+    return steps
 
 
 def noise_std(value: Any, source: str, key: str) -> float | list[float]:
@@ -185,30 +170,6 @@ def noise_std(value: Any, source: str, key: str) -> float | list[float]:
     if isinstance(value, (list, tuple)) and value:
         return [real(0.0)(element, source, key) for element in value]
     return real(0.0)(value, source, key)
-
-
-def entropy_coefficient(value: Any, source: str, key: str) -> float | str:
-    """SAC's ``ent_coef``: a number >= 0, ``auto`` or ``auto_<initial value>``."""
-    if isinstance(value, str):
-        if value == "auto" or (value.startswith("auto_") and _is_positive_float(value[len("auto_") :])):
-            return value
-        raise _fail(value, source, key, "a number >= 0, 'auto' or 'auto_<initial value>'")
-    return real(0.0)(value, source, key)
-
-
-def target_entropy(value: Any, source: str, key: str) -> float | str:
-    """SAC's ``target_entropy``: a number or ``auto``."""
-    if value == "auto":
-        return value
-    return real()(value, source, key)
-
-
-def _is_positive_float(text: str) -> bool:
-    try:
-        number = float(text)
-    except ValueError:
-        return False
-    return math.isfinite(number) and number > 0
 
 
 def class_reference(value: Any, source: str, key: str) -> Any:
@@ -224,20 +185,11 @@ def class_reference(value: Any, source: str, key: str) -> Any:
     raise _fail(value, source, key, "a name, a {name: {keyword: value}} mapping, or a list of those")
 
 
-def mapping_or_expression(value: Any, source: str, key: str) -> dict[str, Any] | str:
-    """A mapping, or a string such as ``"dict(net_arch=[64, 64])"`` (parsed later, never executed)."""
-    if isinstance(value, str):
-        return value
-    return mapping(value, source, key)
-
-
 def normalize(value: Any, source: str, key: str) -> bool | dict[str, Any] | str:
     """``true``/``false``, a mapping of ``VecNormalize`` keywords, or such a mapping as a string."""
-    if isinstance(value, bool):
-        return value
-    if isinstance(value, (dict, str)):
-        return mapping_or_expression(value, source, key)
-    raise _fail(value, source, key, "true, false, or a mapping of VecNormalize keywords (norm_obs, norm_reward, ...)")
+    if not isinstance(value, (bool, dict, str)):
+        raise _fail(value, source, key, "true, false, or a mapping of VecNormalize keywords (norm_obs, norm_reward, ...)")
+    return value if isinstance(value, bool) else mapping_or_expression(value, source, key)
 
 
 def optional(validator: Validator) -> Validator:
@@ -246,11 +198,7 @@ def optional(validator: Validator) -> Validator:
 
     :param validator: The validator of non-null values
     """
-
-    def check(value: Any, source: str, key: str) -> Any:
-        return None if value is None else validator(value, source, key)
-
-    return check
+    return lambda value, source, key: None if value is None else validator(value, source, key)
 
 
 def checked_by(check: Callable[[Any], None], canonical: Validator | None = None) -> Validator:

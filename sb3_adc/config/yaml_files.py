@@ -1,10 +1,9 @@
 """
-Bounded YAML: the hyperparameter files, experiment files and a run's ``config.yml`` and ``args.yml`` are read with
-``yaml.safe_load`` semantics (no Python tags), duplicate keys rejected, and limits, so that a small hostile file
-cannot exhaust memory or time: at most :data:`MAX_FILE_BYTES` bytes, :data:`MAX_DEPTH` levels of nested
-collections, :data:`MAX_ALIASES` aliases (``*name``) and :data:`MAX_EXPANDED_VALUES` values once the aliases are
-expanded (an "alias bomb" of a few hundred bytes expands to billions). A file over a limit is rejected before
-anything is built from it, with a :class:`~sb3_adc.config.errors.HyperparamsError` that names the file and the limit.
+Bounded YAML: hyperparameter files, experiment files and a run's ``config.yml`` and ``args.yml`` are read with
+``yaml.safe_load`` semantics (no Python tags), duplicate keys rejected, and limits on size, nesting, aliases and the
+values the aliases expand to (an "alias bomb" of a few hundred bytes expands to billions), so that a small hostile
+file cannot exhaust memory or time. A file over a limit is rejected before anything is built from it, with a
+:class:`~sb3_adc.config.errors.HyperparamsError` naming the file and the limit.
 """
 
 from __future__ import annotations
@@ -31,46 +30,32 @@ class _YamlLimitExceeded(yaml.YAMLError):
 
 
 class _HyperparamsYamlLoader(yaml.SafeLoader):
-    """
-    ``yaml.SafeLoader`` that rejects duplicate keys in a mapping (the last one would win silently) and documents
-    over :data:`MAX_DEPTH`, :data:`MAX_ALIASES` or :data:`MAX_EXPANDED_VALUES`, while composing them (before any
-    Python object is built).
-    """
+    """``yaml.SafeLoader`` rejecting duplicate keys, and documents over a limit while composing them."""
 
-    def __init__(self, stream: str) -> None:
-        super().__init__(stream)
-        self._depth = 0
-        self._aliases = 0
+    _depth = 0  # class defaults, shadowed per instance on first change
+    _aliases = 0
 
     def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node | None:
-        if self.check_event(yaml.AliasEvent):
-            self._aliases += 1
-            if self._aliases > MAX_ALIASES:
-                mark = self.peek_event().start_mark
-                raise _YamlLimitExceeded(f"more than {MAX_ALIASES} aliases (line {mark.line + 1}); MAX_ALIASES={MAX_ALIASES}")
-            return super().compose_node(parent, index)
-        if not self.check_event(yaml.SequenceStartEvent, yaml.MappingStartEvent):
-            return super().compose_node(parent, index)
-        # A collection: one level deeper (PyYAML composes them recursively).
-        if self._depth >= MAX_DEPTH:
-            mark = self.peek_event().start_mark
-            raise _YamlLimitExceeded(
-                f"collections nested more than {MAX_DEPTH} levels deep (line {mark.line + 1}); MAX_DEPTH={MAX_DEPTH}"
-            )
-        self._depth += 1
+        at = f"line {self.peek_event().start_mark.line + 1}"
+        self._aliases += self.check_event(yaml.AliasEvent)
+        if self._aliases > MAX_ALIASES:
+            raise _YamlLimitExceeded(f"more than {MAX_ALIASES} aliases ({at}); MAX_ALIASES={MAX_ALIASES}")
+        # A collection is one level deeper (PyYAML composes them recursively).
+        nested = self.check_event(yaml.SequenceStartEvent, yaml.MappingStartEvent)
+        if nested and self._depth >= MAX_DEPTH:
+            raise _YamlLimitExceeded(f"collections nested more than {MAX_DEPTH} levels deep ({at}); MAX_DEPTH={MAX_DEPTH}")
+        self._depth += nested
         try:
             return super().compose_node(parent, index)
         finally:
-            self._depth -= 1
+            self._depth -= nested
 
     def get_single_node(self) -> yaml.Node | None:
         node = super().get_single_node()
-        if node is not None and self._aliases:
-            expanded = _expanded_size(node, {})
-            if expanded > MAX_EXPANDED_VALUES:
-                raise _YamlLimitExceeded(
-                    f"its aliases expand to {expanded} values, more than MAX_EXPANDED_VALUES={MAX_EXPANDED_VALUES}"
-                )
+        expanded = _expanded_size(node, {}) if node is not None and self._aliases else 0
+        if expanded > MAX_EXPANDED_VALUES:
+            limit = f"more than MAX_EXPANDED_VALUES={MAX_EXPANDED_VALUES}"
+            raise _YamlLimitExceeded(f"its aliases expand to {expanded} values, {limit}")
         return node
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
@@ -90,30 +75,25 @@ class _HyperparamsYamlLoader(yaml.SafeLoader):
 def _expanded_size(node: yaml.Node, sizes: dict[int, int]) -> int:
     """Number of values under ``node`` with every alias expanded; shared nodes are counted once per use, computed
     once (``sizes``), so the count costs as much as the document as written. The depth is bounded by MAX_DEPTH."""
-    known = sizes.get(id(node))
-    if known is not None:
-        return known
-    size = 1
-    if isinstance(node, yaml.SequenceNode):
-        size += sum(_expanded_size(child, sizes) for child in node.value)
-    elif isinstance(node, yaml.MappingNode):
-        size += sum(_expanded_size(key, sizes) + _expanded_size(value, sizes) for key, value in node.value)
-    sizes[id(node)] = size
-    return size
+    if id(node) not in sizes:
+        children = node.value if isinstance(node, yaml.SequenceNode) else []
+        if isinstance(node, yaml.MappingNode):
+            children = [child for pair in node.value for child in pair]
+        sizes[id(node)] = 1 + sum(_expanded_size(child, sizes) for child in children)
+    return sizes[id(node)]
 
 
 def load_yaml_bounded(text: str, source: str, key: str | None = None, what: str = "file") -> Any:
     """
-    Read one YAML document with ``yaml.safe_load`` semantics, duplicate keys rejected, and the limits of this
-    module (:data:`MAX_DEPTH`, :data:`MAX_ALIASES`, :data:`MAX_EXPANDED_VALUES`; the caller bounds the length).
+    Read one YAML document with ``yaml.safe_load`` semantics, duplicate keys rejected, within :data:`MAX_DEPTH`,
+    :data:`MAX_ALIASES` and :data:`MAX_EXPANDED_VALUES` (the caller bounds the length).
 
     :param text: The document
     :param source: Where it comes from (a file path, ``command line``), for error messages
     :param key: The hyperparameter key it is the value of, if any, for error messages
     :param what: What the document is (``file``, ``value``), for error messages
-    :return: The document's content
-    :raises HyperparamsError: if it is not valid YAML (or uses Python tags), or is over a limit; the message
-        never shows the document's content, whose representation may be huge
+    :raises HyperparamsError: if it is not valid YAML (or uses Python tags), or is over a limit (the message never
+        shows the document, whose representation may be huge)
     """
     loader = _HyperparamsYamlLoader(text)
     try:
@@ -128,20 +108,16 @@ def load_yaml_bounded(text: str, source: str, key: str | None = None, what: str 
 
 def read_yaml_file(path: str) -> Any:
     """
-    Read a YAML file within the limits of this module (:data:`MAX_FILE_BYTES`, :data:`MAX_DEPTH`,
-    :data:`MAX_ALIASES`, :data:`MAX_EXPANDED_VALUES`) with :func:`load_yaml_bounded`: the hyperparameter files,
-    and the ``config.yml`` and ``args.yml`` of a run.
+    Read a YAML file of at most :data:`MAX_FILE_BYTES` bytes with :func:`load_yaml_bounded`.
 
     :param path: The file (it must exist)
-    :return: The file's content
     :raises HyperparamsError: if the file is not valid UTF-8 YAML or is over a limit
     """
     with open(path, "rb") as stream:
         data = stream.read(MAX_FILE_BYTES + 1)
     if len(data) > MAX_FILE_BYTES:
-        raise HyperparamsError(
-            path, None, f"file larger than {MAX_FILE_BYTES} bytes (MAX_FILE_BYTES of sb3_adc.config.yaml_files)"
-        )
+        limit = "MAX_FILE_BYTES of sb3_adc.config.yaml_files"
+        raise HyperparamsError(path, None, f"file larger than {MAX_FILE_BYTES} bytes ({limit})")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as error:
