@@ -1,7 +1,7 @@
 """
 How a benchmark's runs (:mod:`sb3_adc.experiment.benchmark`) are carried out: :func:`run_one` trains, resumes or
-skips one run and reads back its results; the backends run many, in a local pool of processes (Ctrl-C and SIGTERM
-turned into a checkpoint of each run in progress) or as Ray tasks on a Ray cluster.
+skips one run and reads back its results; :func:`run_local` runs many in a pool of processes (Ctrl-C and SIGTERM
+turned into a checkpoint of each run in progress), :func:`run_ray` as Ray tasks.
 """
 
 from __future__ import annotations
@@ -49,6 +49,19 @@ class RunOutcome:
     error: str = ""
     log_folder: str = ""
 
+    @classmethod
+    def read(cls, spec: RunSpec, status: str, log_folder: str) -> RunOutcome:
+        """
+        The outcome of a run with its results read from its folder.
+
+        :param spec: The run
+        :param status: Its status
+        :param log_folder: Its grid's log folder
+        """
+        layout = RunLayout(spec.run_dir(log_folder), spec.env_id)
+        evaluations, episodes = evaluation_rows(layout, spec.algo, spec.seed), episode_rows(layout, spec.algo, spec.seed)
+        return cls(spec, status, evaluations, episodes, final_row(layout, spec.algo, spec.seed), log_folder=log_folder)
+
 
 def run_one(spec: RunSpec, settings: BenchmarkSettings) -> RunOutcome:
     """
@@ -70,23 +83,9 @@ def run_one(spec: RunSpec, settings: BenchmarkSettings) -> RunOutcome:
         else:
             train(settings.train_settings(spec))
             status = "trained"
-        return RunOutcome(
-            spec,
-            status,
-            evaluations=evaluation_rows(layout, spec.algo, spec.seed),
-            episodes=episode_rows(layout, spec.algo, spec.seed),
-            final=final_row(layout, spec.algo, spec.seed),
-            log_folder=settings.log_folder,
-        )
+        return RunOutcome.read(spec, status, settings.log_folder)
     except Exception:  # a failed run must not stop the grid
         return RunOutcome(spec, "failed", error=traceback.format_exc(), log_folder=settings.log_folder)
-
-
-def _init_worker() -> None:
-    import torch as th
-
-    # One process per run: several torch threads per process would only compete for the same cores.
-    th.set_num_threads(1)
 
 
 #: In a worker of the local pool: whether a run is in progress, and whether the worker was interrupted (Ctrl-C
@@ -95,42 +94,38 @@ _IN_RUN = threading.Event()
 _WORKER_INTERRUPTED = threading.Event()
 
 
-def _init_local_worker() -> None:
+def _init_worker(handle_signals: bool = False) -> None:
     """
-    A worker of the local pool: as :func:`_init_worker`, and Ctrl-C and SIGTERM handled by :func:`_interrupt_worker`
-    (a scheduler such as Slurm signals every process of a job; the parent passes on a SIGTERM that it alone
-    received, see :func:`_stop_pool`). Not for Ray's workers, which Ray itself stops with SIGTERM.
+    One torch thread per process (one process per run). With ``handle_signals`` (the local pool, not Ray, which
+    stops its workers with SIGTERM itself): Ctrl-C and SIGTERM go to :func:`_interrupt_worker` (a scheduler such as
+    Slurm signals every process of a job; the parent passes on a SIGTERM it alone received, see :func:`_stop_pool`).
     """
-    _init_worker()
-    signal.signal(signal.SIGINT, _interrupt_worker)
-    signal.signal(signal.SIGTERM, _interrupt_worker)
+    import torch as th
+
+    th.set_num_threads(1)
+    if handle_signals:
+        signal.signal(signal.SIGINT, _interrupt_worker)
+        signal.signal(signal.SIGTERM, _interrupt_worker)
 
 
 def _interrupt_worker(signum: int, frame: FrameType | None) -> None:
     """
-    Ctrl-C or SIGTERM in a worker of the local pool: the run in progress stops as with Ctrl-C (in training, the
-    run's own SIGINT handler saves a checkpoint after the step in progress), and the worker starts no other run.
-    An idle worker only takes note: it leaves when the pool shuts down (a worker that died would break the pool,
-    which then kills the others, however far their checkpoints are). A second SIGTERM is ignored (a second Ctrl-C
-    stops the run at once, as it does outside a pool).
+    Ctrl-C or SIGTERM in a worker of the local pool: the run in progress stops as with Ctrl-C (its own SIGINT handler
+    saves a checkpoint) and the worker starts no other run. An idle worker only takes note (a worker that died would
+    break the pool, which then kills the others). A second SIGTERM is ignored (a second Ctrl-C stops the run at once).
     """
     if signum == signal.SIGTERM and _WORKER_INTERRUPTED.is_set():
         return  # a SIGTERM passed on by the parent after the scheduler's own (Slurm signals every process)
     _WORKER_INTERRUPTED.set()
-    if not _IN_RUN.is_set():
-        return
     handler = signal.getsignal(signal.SIGINT)
-    if callable(handler) and handler is not _interrupt_worker:
+    if _IN_RUN.is_set() and callable(handler) and handler is not _interrupt_worker:
         handler(signal.SIGINT, frame)
-    else:
+    elif _IN_RUN.is_set():
         raise KeyboardInterrupt
 
 
 def _run_local_job(spec: RunSpec, settings: BenchmarkSettings) -> RunOutcome:
-    """
-    :func:`run_one` in a worker of the local pool, unless the worker was interrupted. An interruption comes back
-    to the parent as a plain ``KeyboardInterrupt`` (one that pickles).
-    """
+    """:func:`run_one` in a worker of the local pool, unless it was interrupted (a ``KeyboardInterrupt`` that pickles)."""
     if _WORKER_INTERRUPTED.is_set():
         raise KeyboardInterrupt(f"{spec}: not started, the worker was interrupted")
     _IN_RUN.set()
@@ -155,7 +150,7 @@ def run_local(jobs: Sequence[Job], workers: int) -> Iterator[RunOutcome]:
             yield run_one(spec, settings)
         return
     context = multiprocessing.get_context("spawn")
-    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context, initializer=_init_local_worker) as pool:
+    with concurrent.futures.ProcessPoolExecutor(workers, context, _init_worker, (True,)) as pool:
         futures = [pool.submit(_run_local_job, spec, settings) for spec, settings in jobs]
         try:
             for future in concurrent.futures.as_completed(futures):
@@ -167,15 +162,9 @@ def run_local(jobs: Sequence[Job], workers: int) -> Iterator[RunOutcome]:
 
 def _stop_pool(pool: concurrent.futures.ProcessPoolExecutor, futures: Sequence[concurrent.futures.Future[Any]]) -> None:
     """
-    Stop the pool after Ctrl-C or SIGTERM: no run starts, the runs in progress save a checkpoint and the workers
-    exit (none is left behind the command).
-
-    Ctrl-C reaches every process of the terminal's group, and so does a Slurm SIGTERM; a SIGTERM to this process
-    alone (Kubernetes stops a container that way, or ``kill PID``) is passed on to the workers. A worker, once
-    interrupted, starts no run (see :func:`_interrupt_worker`), so the runs queued before the interrupt end at once.
-
-    :param pool: The pool
-    :param futures: The runs submitted to it
+    After Ctrl-C or SIGTERM: no run starts, the runs in progress save a checkpoint and the workers exit. Ctrl-C (and
+    a Slurm SIGTERM) reaches every process of the group; a SIGTERM to this process alone (Kubernetes, ``kill PID``) is
+    passed on to the workers. An interrupted worker starts no run, so the queued runs end at once.
     """
     from sb3_adc.experiment.training import sigterm_received
 
@@ -191,12 +180,9 @@ def _stop_pool(pool: concurrent.futures.ProcessPoolExecutor, futures: Sequence[c
 
 def run_ray(jobs: Sequence[Job], address: str | None = None) -> Iterator[RunOutcome]:
     """
-    Run the jobs as Ray tasks, one run per task (one CPU each); outcomes come as runs finish.
-
-    Uses the Ray instance this process is connected to, else connects to ``address`` (``ray.init(address)``;
-    ``None`` starts a local instance). The tasks return their result rows, so the tables are complete even
-    when the workers do not share the driver's file system; to resume interrupted runs, put ``log_folder`` on
-    storage all nodes share.
+    Run the jobs as Ray tasks, one run per task (one CPU each); outcomes come as runs finish. Uses the Ray instance
+    this process is connected to, else ``ray.init(address)`` (``None`` starts a local one). The tasks return their
+    rows, so the tables are complete without a shared file system; to resume runs, put ``log_folder`` on one.
 
     :param jobs: The runs, each with its grid's settings
     :param address: Address of the Ray cluster (``ray.init(address=...)``)

@@ -1,18 +1,10 @@
 """
-Benchmark grids: algorithms x environments x seeds, one training run each, in parallel processes (default) or
-as Ray tasks on a Ray cluster, resumable, summarised in tidy CSVs.
-
-Run ``(algo, env, seed)`` lives in ``{log_folder}/{algo}/{env_name}_seed{seed}/`` (the RL-Zoo run layout
-with the seed as run name). Re-running a grid keeps finished runs (they are skipped), resumes interrupted
-ones from their last checkpoint and starts the others; a run on disk made with other settings (resolved
-hyperparameters, budget, evaluation) is refused before anything runs (:class:`RunSettingsMismatch`). Results
-are written to ``{log_folder}``: ``evaluations.csv`` (the evaluation curves), ``episodes.csv`` (training
-episodes) and ``final.csv`` (final evaluations), with the rows of every finished run in the folder, of this
-grid or not; see :mod:`sb3_adc.experiment.results` for the columns. ``invocations.json`` records each
-invocation that worked on the grid and its wall time, including one killed before it finished
-(:mod:`sb3_adc.experiment.invocations`). One invocation works on a log folder at a time: it holds the folder's lock
-(:class:`~sb3_adc.experiment.layout.FolderLock`) from before it writes anything until its tables are written, and a
-second one fails at once with :class:`~sb3_adc.experiment.layout.RunLocked`.
+Benchmark grids: algorithms x environments x seeds, one run each in ``{log_folder}/{algo}/{env_name}_seed{seed}/``,
+in parallel processes or Ray tasks (:mod:`sb3_adc.experiment.backends`). Re-running a grid skips finished runs, resumes
+interrupted ones and starts the others; a run on disk made with other settings is refused (:class:`RunSettingsMismatch`).
+``evaluations.csv``, ``episodes.csv`` and ``final.csv`` (:mod:`sb3_adc.experiment.results`) hold every finished run of
+the folder, ``invocations.json`` each invocation (:mod:`sb3_adc.experiment.invocations`). One invocation at a time holds
+the folder's :class:`~sb3_adc.experiment.layout.FolderLock` until its tables are written.
 """
 
 from __future__ import annotations
@@ -23,25 +15,17 @@ import glob
 import os
 import re
 import warnings
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import yaml
 
 from sb3_adc.config.loader import read_yaml_file
-from sb3_adc.experiment.backends import Job, RunOutcome, run_local, run_ray
+from sb3_adc.experiment.backends import RunOutcome, run_local, run_ray
 from sb3_adc.experiment.invocations import InvocationJournal
 from sb3_adc.experiment.layout import DamagedFileError, FolderLock, RunLayout, env_name
-from sb3_adc.experiment.results import (
-    EPISODE_COLUMNS,
-    EVALUATION_COLUMNS,
-    FINAL_COLUMNS,
-    episode_rows,
-    evaluation_rows,
-    final_row,
-    write_table,
-)
+from sb3_adc.experiment.results import EPISODE_COLUMNS, EVALUATION_COLUMNS, FINAL_COLUMNS, write_table
 from sb3_adc.experiment.settings import TrainSettings
 
 #: File names of the tables a benchmark writes in its log folder.
@@ -52,11 +36,12 @@ INTERRUPTED = "Interrupted: finished runs are kept, running ones saved a checkpo
 #: What the holder of a benchmark log folder's lock is doing, for the error of a second invocation.
 BENCHMARK_ACTIVITY = "running a benchmark in it (sb3-adc benchmark, an experiment or a benchmark script)"
 
-#: Run settings that do not change a run's results: a run on disk may differ from the grid in them.
-_NEUTRAL_SETTINGS = frozenset({"log_folder", "run_dir", "device", "verbose", "progress_bar", "keep_checkpoints"})
-#: Run settings compared through the resolved hyperparameters they produce (``config.yml``), not as given.
-_RESOLVED_SETTINGS = frozenset({"conf_file", "overrides", "env_kwargs", "n_timesteps"})
+#: Run settings not compared as given: those that do not change a run's results, and those compared through the
+#: resolved hyperparameters they produce (``config.yml``).
+_NOT_COMPARED = {"log_folder", "run_dir", "device", "verbose", "progress_bar", "keep_checkpoints"}
+_NOT_COMPARED |= {"conf_file", "overrides", "env_kwargs", "n_timesteps"}
 _RUN_FOLDER = re.compile(r"^.+_seed(\d+)$")
+_GRID_ONLY = ("algos", "env_ids", "seeds", "conf_folder")
 
 
 class RunSettingsMismatch(ValueError):
@@ -118,11 +103,9 @@ class BenchmarkSettings:
     :param eval_episodes: Episodes per periodic evaluation
     :param final_eval_episodes: Episodes of the final evaluation
     :param device: PyTorch device of the runs
-    :param keep_checkpoints: How many of each run's latest checkpoints to keep (one per evaluation; a budget sweep
-        keeps them all to score each)
+    :param keep_checkpoints: How many of each run's latest checkpoints to keep (one per evaluation; a budget sweep keeps all)
     :param eval_env_kwargs: ``gym.make`` keywords of the evaluation environments only (a validation split)
-    :param best_model_metric: What picks each run's ``best_model.zip``
-        (:attr:`~sb3_adc.experiment.settings.TrainSettings.best_model_metric`)
+    :param best_model_metric: What picks each run's ``best_model.zip`` (:class:`~sb3_adc.experiment.settings.TrainSettings`)
     """
 
     algos: list[str]
@@ -151,25 +134,17 @@ class BenchmarkSettings:
         :param spec: The run
         """
         conf_file = None if self.conf_folder is None else os.path.join(self.conf_folder, f"{spec.algo}.yml")
-        # The settings named as TrainSettings' fields.
-        same = "n_timesteps log_folder eval_freq eval_episodes final_eval_episodes device keep_checkpoints best_model_metric"
-        return TrainSettings(
-            **dataclasses.asdict(spec),
-            conf_file=conf_file,
-            run_dir=spec.run_dir(self.log_folder),
-            progress_bar=False,
-            overrides=dict(self.overrides),
-            eval_env_kwargs=dict(self.eval_env_kwargs),
-            **{name: getattr(self, name) for name in same.split()},
-        )
+        # The other settings are named as TrainSettings' fields (asdict copies the dicts).
+        shared = {key: value for key, value in dataclasses.asdict(self).items() if key not in _GRID_ONLY}
+        run_dir = spec.run_dir(self.log_folder)
+        return TrainSettings(**dataclasses.asdict(spec), **shared, conf_file=conf_file, run_dir=run_dir, progress_bar=False)
 
 
 def check_runs_on_disk(settings: BenchmarkSettings) -> None:
     """
-    Check that the runs of the grid already on disk were made with the grid's settings, so that skipping or
-    resuming them gives the runs asked for: their resolved hyperparameters (``config.yml``, which holds the
-    budget and the ``-params`` overrides) and their run settings (``args.yml``: evaluation frequency and
-    episodes, ...). Also checks every run's hyperparameters before anything is written.
+    Check every run's hyperparameters, and that the grid's runs already on disk were made with the grid's settings
+    (so that skipping or resuming them gives the runs asked for): their resolved hyperparameters (``config.yml``:
+    budget and overrides included) and their run settings (``args.yml``).
 
     :param settings: The grid
     :raises HyperparamsError: for invalid hyperparameters of a run
@@ -179,17 +154,14 @@ def check_runs_on_disk(settings: BenchmarkSettings) -> None:
 
     differences: dict[str, list[str]] = {}
     for spec in settings.grid():
-        train_settings = settings.train_settings(spec)
-        config = load_hyperparams(
-            spec.algo, spec.env_id, train_settings.conf_file, train_settings.overrides, train_settings.n_timesteps
-        )
+        asked = settings.train_settings(spec)
+        config = load_hyperparams(spec.algo, spec.env_id, asked.conf_file, asked.overrides, asked.n_timesteps)
         layout = RunLayout(spec.run_dir(settings.log_folder), spec.env_id)
         if not os.path.isfile(layout.args) or not os.path.isfile(layout.config):
             continue
-        saved_config = read_yaml_file(layout.config)
-        asked_config = yaml.safe_load(yaml.safe_dump(config.saved))
-        keys = _differences(saved_config if isinstance(saved_config, dict) else {}, asked_config)
-        keys += _differences(_compared_settings(TrainSettings.load(layout.args)), _compared_settings(train_settings))
+        saved = read_yaml_file(layout.config)
+        keys = _differences(saved if isinstance(saved, dict) else {}, yaml.safe_load(yaml.safe_dump(config.saved)))
+        keys += _differences(_compared_settings(TrainSettings.load(layout.args)), _compared_settings(asked))
         if keys:
             differences[layout.run_dir] = keys
     if differences:
@@ -197,8 +169,7 @@ def check_runs_on_disk(settings: BenchmarkSettings) -> None:
 
 
 def _compared_settings(settings: TrainSettings) -> dict[str, Any]:
-    ignored = _NEUTRAL_SETTINGS | _RESOLVED_SETTINGS
-    return {key: value for key, value in dataclasses.asdict(settings).items() if key not in ignored}
+    return {key: value for key, value in dataclasses.asdict(settings).items() if key not in _NOT_COMPARED}
 
 
 def _differences(saved: dict[str, Any], asked: dict[str, Any]) -> list[str]:
@@ -256,15 +227,13 @@ def run_benchmark(
     report: Callable[[RunOutcome, int, int], None] | None = None,
 ) -> BenchmarkResult:
     """
-    Run a grid and write its tables (also when some runs fail: finished work is never lost).
+    :func:`run_benchmarks` of one grid.
 
     :param settings: The grid
     :param backend: ``local`` (a process pool) or ``ray``
     :param workers: Processes of the local backend (``None``: the number of CPUs)
     :param address: Ray cluster address (Ray backend)
     :param report: Called with (outcome, runs done, runs in total) as each run finishes
-    :raises HyperparamsError: for invalid hyperparameters (before any run starts)
-    :raises RunSettingsMismatch: if runs on disk were made with other settings (before any run starts)
     """
     return run_benchmarks([settings], backend, workers, address, report)[0]
 
@@ -277,9 +246,8 @@ def run_benchmarks(
     report: Callable[[RunOutcome, int, int], None] | None = None,
 ) -> list[BenchmarkResult]:
     """
-    Run several grids in one pool of workers and write each grid's tables in its own log folder: a sweep over
-    configurations (one grid per set of overrides) keeps every worker busy until the last run, where running the
-    grids one after the other, or side by side with a share of the workers each, leaves workers idle.
+    Run several grids in one pool of workers (which keeps every worker busy until the last run) and write each grid's
+    tables in its own log folder, also when some runs fail or on Ctrl-C: finished work is never lost.
 
     :param grids: The grids (each its own ``log_folder``)
     :param backend: ``local`` (a process pool) or ``ray``
@@ -296,57 +264,44 @@ def run_benchmarks(
         raise ValueError(f"every grid needs its own `log_folder`, got {[settings.log_folder for settings in grids]}.")
     if backend not in ("local", "ray"):
         raise ValueError(f"`backend` must be 'local' or 'ray', got {backend!r}.")
-    jobs: list[Job] = []
-    sizes = []
+    jobs = [(spec, settings) for settings in grids for spec in settings.grid()]
     for settings in grids:
-        specs = settings.grid()
-        if not specs:
+        if not settings.grid():
             raise ValueError("the grid is empty: give at least one algorithm, environment and seed.")
         check_runs_on_disk(settings)  # before anything is written, the log folders included
-        jobs += [(spec, settings) for spec in specs]
-        sizes.append(len(specs))
+    outcomes: dict[str, list[RunOutcome]] = {folder: [] for folder in folders}
+
+    def write_all() -> list[dict[str, str]]:
+        return [write_tables(outcomes[folder], grid.log_folder) for grid, folder in zip(grids, folders, strict=True)]
+
     with contextlib.ExitStack() as locks:
-        # One invocation per log folder, until its tables are written; the runs on disk are checked again under
-        # the locks, in case another invocation changed them since.
+        # One invocation per log folder until its tables are written; the runs on disk are checked again under the
+        # locks, in case another invocation changed them since.
         for folder in sorted(folders):
             locks.enter_context(FolderLock(folder, BENCHMARK_ACTIVITY))
         for settings in grids:
             check_runs_on_disk(settings)
         n_workers = workers or os.cpu_count() or 1
-        if backend == "local":
-            outcomes_iterator: Iterable[RunOutcome] = run_local(jobs, n_workers)
-        else:
-            outcomes_iterator = run_ray(jobs, address)
-        # Each outcome names its grid's log folder, and the folders are distinct.
-        outcomes: dict[str, list[RunOutcome]] = {folder: [] for folder in folders}
-        journal = InvocationJournal(
-            [(folder, settings.algos, size) for settings, folder, size in zip(grids, folders, sizes, strict=True)],
-            workers=n_workers if backend == "local" else "cluster",
-            backend=backend,
-        )
+        sizes = [(folder, settings.algos, len(settings.grid())) for settings, folder in zip(grids, folders, strict=True)]
+        journal = InvocationJournal(sizes, workers=n_workers if backend == "local" else "cluster", backend=backend)
         try:
             with journal:
-                for done, outcome in enumerate(outcomes_iterator, start=1):
-                    folder = os.path.normpath(outcome.log_folder)
-                    outcomes[folder].append(outcome)
-                    journal.record(folder, outcome.status)
+                results = run_local(jobs, n_workers) if backend == "local" else run_ray(jobs, address)
+                for done, outcome in enumerate(results, start=1):
+                    outcomes[os.path.normpath(outcome.log_folder)].append(outcome)
+                    journal.record(os.path.normpath(outcome.log_folder), outcome.status)
                     if report is not None:
                         report(outcome, done, len(jobs))
-        except KeyboardInterrupt:
-            # Ctrl-C: the runs in progress saved a checkpoint; the tables keep the runs that finished.
-            for settings, folder in zip(grids, folders, strict=True):
-                write_tables(outcomes[folder], settings.log_folder)
+        except KeyboardInterrupt:  # the runs in progress saved a checkpoint; the tables keep the runs that finished
+            write_all()
             raise
-        return [
-            BenchmarkResult(outcomes[folder], write_tables(outcomes[folder], settings.log_folder))
-            for settings, folder in zip(grids, folders, strict=True)
-        ]
+        return [BenchmarkResult(outcomes[folder], paths) for folder, paths in zip(folders, write_all(), strict=True)]
 
 
 def write_tables(outcomes: list[RunOutcome], folder: str) -> dict[str, str]:
     """
-    Write the evaluation, episode and final tables of the outcomes and of the other finished runs in the
-    folder (runs of earlier grids: a smaller grid never drops their rows).
+    Write the evaluation, episode and final tables of the outcomes and of the other finished runs in the folder (runs
+    of earlier grids: a smaller grid never drops their rows).
 
     :param outcomes: The runs' outcomes
     :param folder: Where to write them (the benchmark's log folder)
@@ -355,26 +310,17 @@ def write_tables(outcomes: list[RunOutcome], folder: str) -> dict[str, str]:
     done = {outcome.spec for outcome in outcomes}
     outcomes = list(outcomes)
     for spec in runs_on_disk(folder):
-        if spec in done:
-            continue
-        layout = RunLayout(spec.run_dir(folder), spec.env_id)
-        if not layout.is_finished():
+        if spec in done or not RunLayout(spec.run_dir(folder), spec.env_id).is_finished():
             continue
         try:
-            outcomes.append(
-                RunOutcome(
-                    spec,
-                    "skipped",
-                    evaluations=evaluation_rows(layout, spec.algo, spec.seed),
-                    episodes=episode_rows(layout, spec.algo, spec.seed),
-                    final=final_row(layout, spec.algo, spec.seed),
-                    log_folder=folder,
-                )
-            )
+            outcomes.append(RunOutcome.read(spec, "skipped", folder))
         except (DamagedFileError, OSError, ValueError) as error:
             warnings.warn(f"the results of {spec} are left out of the tables: {error}", stacklevel=2)
-    paths = {name: os.path.join(folder, name) for name in (EVALUATIONS_CSV, EPISODES_CSV, FINAL_CSV)}
-    write_table([row for outcome in outcomes for row in outcome.evaluations], EVALUATION_COLUMNS, paths[EVALUATIONS_CSV])
-    write_table([row for outcome in outcomes for row in outcome.episodes], EPISODE_COLUMNS, paths[EPISODES_CSV])
-    write_table([outcome.final for outcome in outcomes if outcome.final is not None], FINAL_COLUMNS, paths[FINAL_CSV])
-    return paths
+    tables = {
+        EVALUATIONS_CSV: ([row for outcome in outcomes for row in outcome.evaluations], EVALUATION_COLUMNS),
+        EPISODES_CSV: ([row for outcome in outcomes for row in outcome.episodes], EPISODE_COLUMNS),
+        FINAL_CSV: ([outcome.final for outcome in outcomes if outcome.final is not None], FINAL_COLUMNS),
+    }
+    for name, (rows, columns) in tables.items():
+        write_table(rows, columns, os.path.join(folder, name))
+    return {name: os.path.join(folder, name) for name in tables}

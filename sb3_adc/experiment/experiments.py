@@ -1,11 +1,9 @@
 """
-Experiments as data: one YAML file names a grid of configurations x environments x seeds, its budget, its
-evaluation and its statistics; ``sb3-adc experiment FILE`` trains it on the benchmark engine
-(:func:`~sb3_adc.experiment.benchmark.run_benchmarks`: resumable, one process per run or Ray tasks) and writes its
-tables and figures. Every committed result under ``benchmarks/results/`` that a Pendulum or paper-course page
-cites is one file of ``benchmarks/experiments/``.
-
-The file (read with the hyperparameter files' bounded YAML reader: nothing in it is executed)::
+Experiments as data: one YAML file names a grid of configurations x environments x seeds, its budget, evaluation and
+statistics; ``sb3-adc experiment FILE`` trains it on the benchmark engine
+(:func:`~sb3_adc.experiment.benchmark.run_benchmarks`) and writes its tables and figures. Every committed result under
+``benchmarks/results/`` that a page cites is one file of ``benchmarks/experiments/``. The file (read with the bounded
+YAML reader: nothing in it is executed)::
 
     description: The shipped entries on the noisy Pendulum, fresh seeds
     envs: [sb3_adc/NoisyPendulum-v1]
@@ -19,20 +17,18 @@ The file (read with the hyperparameter files' bounded YAML reader: nothing in it
     threshold: -300                         # optional: runs that stay above this return, and how soon
     runs: ../runs/noisy_pendulum_equal_tuning   # optional (default ../runs/<name>): shared runs train once
     results: ../results/noisy_pendulum_shipped  # optional (default ../results/<name>)
-    figures: ../../docs/_static/benchmarks      # optional: where the figures go, as <name>_<figure>.png (none kept without)
-    test_sets:                              # optional: held-out episodes that score each finished run (test_sets.py)
+    figures: ../../docs/_static/benchmarks      # optional: where the figures go, as <name>_<figure>.png
+    test_sets:                              # optional: held-out episodes scoring each finished run (test_sets.py)
       held-out layouts: {env_kwargs: {start_position_jitter: 0.0}, layout_seeds: {start: 1000000, stop: 1000100}}
       unseen course files: {env_kwargs: {start_position_jitter: 0.1}, courses: [unseen_posts], episodes: 10}
     diagnostics: {every: 2000, episodes: 5}  # optional, one env: each run logs the critic diagnostics
     tuning: {trials: 6, objective: return}  # optional, one env: an Optuna study per configuration (tuning_grid.py)
 
-Paths are relative to the file's folder. ``hyperparams`` is a folder of ``{algo}.yml`` files (default: the shipped
-ones); ``overrides`` are ``-params``. Each configuration is a benchmark grid in ``{runs}/{config}/``; the tables
-of all of them are merged with the configuration's name in the ``algo`` column. A test set (``model: best`` scores each
-run's ``best_model.zip`` instead of its final model) is scored after the training, resumably, into
-``test_episodes.csv``, ``test_runs.csv`` and ``test_summary.{csv,md}`` (:mod:`sb3_adc.experiment.test_sets`).
-With ``diagnostics``, the runs' critic diagnostics go to ``diagnostics/`` and ``diagnostics_*.csv``
-(:func:`~sb3_adc.experiment.summary.write_diagnostics`).
+Paths are relative to the file's folder; ``hyperparams`` is a folder of ``{algo}.yml`` files, ``overrides`` are
+``-params``. Each configuration is a benchmark grid in ``{runs}/{config}/``, their tables merged with the
+configuration's name in the ``algo`` column. Test sets (``model: best``: each run's ``best_model.zip``) are scored
+after the training (:mod:`sb3_adc.experiment.test_sets`); ``diagnostics`` go to ``diagnostics/`` and
+``diagnostics_*.csv`` (:func:`~sb3_adc.experiment.summary.write_diagnostics`).
 """
 
 from __future__ import annotations
@@ -48,13 +44,10 @@ from typing import Any
 
 from sb3_adc.config import ALGORITHMS, HyperparamsError, load_hyperparams
 from sb3_adc.config.loader import read_yaml_file
-from sb3_adc.experiment.benchmark import (
-    BenchmarkSettings,
-    RunOutcome,
-    run_benchmarks,
-)
+from sb3_adc.experiment import test_sets as scoring
+from sb3_adc.experiment.benchmark import BenchmarkSettings, RunOutcome, run_benchmarks
 from sb3_adc.experiment.layout import FolderLock
-from sb3_adc.experiment.test_sets import TestSet, TestSetError, is_int, read_test_sets, score_outcomes
+from sb3_adc.experiment.test_sets import TestSet, TestSetError, is_int, read_test_sets
 from sb3_adc.experiment.tuning_grid import Tuning, read_tuning
 
 #: Keys of an experiment file and of one of its configurations.
@@ -113,9 +106,8 @@ class Experiment:
     :param results: Folder of the tables
     :param figures: Folder of the figures (``None``: none is kept)
     :param test_sets: Held-out test sets scoring each finished run (:mod:`~sb3_adc.experiment.test_sets`)
-    :param diagnostics: ``{every: steps, episodes: n}``: each run logs the critic diagnostics
-        (:class:`~sb3_adc.diagnostics.CriticDiagnosticsCallback`) every ``every`` steps with ``episodes``
-        evaluation rollouts (``None``: none)
+    :param diagnostics: ``{every: steps, episodes: n}``: each run logs the critic diagnostics every ``every`` steps
+        (:class:`~sb3_adc.diagnostics.CriticDiagnosticsCallback`; ``None``: none)
     :param tuning: One Optuna study per configuration instead of the grid (:mod:`~sb3_adc.experiment.tuning_grid`)
     """
 
@@ -156,13 +148,12 @@ class Experiment:
                 conf_folder=config.hyperparams,
                 eval_episodes=1 if tiny else self.eval_episodes,
                 final_eval_episodes=1 if tiny else self.final_eval_episodes,
-                device="cpu",
             )
             for name, config in self.configs.items()
         }
 
     def _diagnostics_callback(self, folder: str, tiny: bool) -> dict[str, Any]:
-        """The ``callback`` override that logs the critic diagnostics of each run to ``{folder}/diagnostics/seed{seed}``."""
+        """The ``callback`` override logging each run's critic diagnostics to ``{folder}/diagnostics/seed{seed}``."""
         if self.diagnostics is None:
             return {}
         every = TINY_TIMESTEPS // 2 if tiny else self.diagnostics["every"]
@@ -193,8 +184,7 @@ class Experiment:
     def record(self, root: str) -> dict[str, Any]:
         """
         The settings the results were made with, as ``metadata.json`` records them (paths relative to ``root``), with
-        every configuration's resolved entries (:meth:`resolved`): a shipped entry or a file that changes afterwards
-        no longer gives the recorded runs, and the experiment's test says so.
+        every configuration's resolved entries (:meth:`resolved`), so that a test can see them change.
 
         :param root: The repository root
         """
@@ -305,9 +295,8 @@ def read_experiment(path: str) -> Experiment:
         _require(len(envs) == 1, path, "diagnostics", "needs exactly one env (its evaluation rollouts run on it)")
         diagnostics = {"every": diagnostics.get("every", 1000), "episodes": diagnostics.get("episodes", 5)}
         for key, value in diagnostics.items():
-            _require(
-                is_int(value, 1, 10**9 if key == "every" else 1000), path, f"diagnostics.{key}", "must be an integer >= 1"
-            )
+            high = 10**9 if key == "every" else 1000
+            _require(is_int(value, 1, high), path, f"diagnostics.{key}", "must be an integer >= 1")
     try:
         test_sets = read_test_sets(data.get("test_sets"))
     except TestSetError as error:
@@ -343,19 +332,17 @@ def run_experiment(
     tiny: bool = False,
 ) -> list[RunOutcome]:
     """
-    Train (or resume, or skip when finished) every run of the experiment in one pool of workers, then write its
-    tables and figures (:func:`~sb3_adc.experiment.summary.write_report`).
+    Train, resume or skip every run of the experiment in one pool of workers, then write its tables and figures.
 
     :param experiment: The experiment
     :param workers: Processes of the local backend (``None``: the number of CPUs)
     :param backend: ``local`` or ``ray``
     :param address: Ray cluster address
     :param report: Called with (outcome, runs done, runs in total) as each run finishes
-    :param tiny: The file's whole pipeline on one seed, one environment and :data:`TINY_TIMESTEPS` steps (100
-        bootstrap replications), in a temporary folder: a check that the file runs, not a result
+    :param tiny: The file's whole pipeline on one seed and environment, :data:`TINY_TIMESTEPS` steps and 100
+        bootstrap replications, in a temporary folder: a check that the file runs, not a result
     :return: The runs' outcomes (failed runs included: the tables hold the others)
-    :raises RunLocked: if another invocation is working on the results folder or on one of the run folders'
-        grids (before anything is written there)
+    :raises RunLocked: if another invocation works on the results folder or on a grid (before anything is written)
     """
     if tiny:
         experiment = dataclasses.replace(experiment, bootstrap_reps=100)
@@ -371,13 +358,18 @@ def run_experiment(
         outcomes = [outcome for result in results for outcome in result.outcomes]
         from sb3_adc.experiment.summary import merge_tables, write_diagnostics, write_report
 
-        tables = {name: result.tables for name, result in zip(grids, results, strict=True)}
         output = os.path.join(scratch, "results") if scratch else experiment.results
-        if any(outcome.final is not None for outcome in outcomes):
-            merge_tables(tables, output)
+        finished = {
+            (name, run.spec.env_id, run.spec.seed): run.spec.run_dir(run.log_folder)
+            for name, result in zip(grids, results, strict=True)
+            for run in result.outcomes
+            if run.final is not None
+        }
+        if finished:
+            merge_tables({name: result.tables for name, result in zip(grids, results, strict=True)}, output)
             if experiment.test_sets:  # each finished run scored (tiny: on two layouts or one episode per test set)
                 test_sets = {name: test.tiny() if tiny else test for name, test in experiment.test_sets.items()}
-                score_outcomes(outcomes, grids, test_sets, output, workers or 1)
+                scoring.score(finished, test_sets, output, workers or 1)
             if experiment.diagnostics:
                 write_diagnostics(experiment, runs or experiment.runs, output, None if tiny else experiment.figures)
             write_report(experiment, output, figures=None if tiny else experiment.figures, wall_time_s=elapsed)
@@ -386,8 +378,8 @@ def run_experiment(
 
 def repository_root(experiment: Experiment) -> str:
     """
-    The folder that recorded paths are relative to: the repository holding the file's ``experiments/`` folder
-    (``benchmarks/experiments/x.yml`` -> the repository), else the file's folder.
+    The folder that recorded paths are relative to: the repository of ``benchmarks/experiments/x.yml``, else the
+    file's folder.
 
     :param experiment: The experiment
     """

@@ -1,14 +1,8 @@
 """
-The record of the invocations that worked on a benchmark grid: ``invocations.json`` in each grid's log folder.
-
-A long grid is often trained by several invocations (a machine's session ends, a node is lost, Ctrl-C), and
-since a resumed run is the run an uninterrupted invocation trains (:mod:`sb3_adc.experiment.continuation`), that
-is a valid way to train it; what it must not lose is the time it took. :class:`InvocationJournal` writes an entry
-per invocation when it starts and keeps it current as runs finish and every ``heartbeat_s`` seconds, so an
-invocation killed without warning leaves its wall time on record to within a heartbeat; :func:`read_invocations`
-gathers the entries of a grid's folders. The file has one writer: the invocation holding the folder's lock
-(:func:`~sb3_adc.experiment.benchmark.run_benchmarks`); a second invocation fails before it reads or writes it, so
-no entry is ever overwritten by another invocation's copy of the file.
+The record of the invocations that worked on a benchmark grid (a long grid is often trained by several: a session
+ends, Ctrl-C), so that the time they took is not lost: ``invocations.json`` in each grid's log folder, written by the
+invocation holding the folder's lock as it starts, as runs finish and on a heartbeat (:class:`InvocationJournal`), and
+gathered by :func:`read_invocations`.
 """
 
 from __future__ import annotations
@@ -20,9 +14,8 @@ import threading
 import time
 import uuid
 from collections.abc import Callable, Iterable, Sequence
-from functools import partial
-from types import TracebackType
-from typing import IO, Any
+from operator import methodcaller
+from typing import Any
 
 from sb3_adc.common.atomic import write_atomically
 
@@ -36,11 +29,9 @@ MAX_FILE_BYTES = 1_000_000
 
 class InvocationJournal:
     """
-    One invocation's entry in ``invocations.json`` of each grid folder it works on: ``id``, ``started`` (UTC),
-    ``wall_time_s`` (so far), ``workers``, ``backend``, ``algos``, ``runs_in_grid`` (the folder's runs this
-    invocation was given), ``runs`` (how many it has trained, resumed, found finished or seen fail so far) and
-    ``finished`` (``False`` until it returns: an invocation stopped by Ctrl-C or killed stays ``False``).
-    Written when it starts, when each run finishes and every ``heartbeat_s`` seconds; a context manager.
+    A context manager: one invocation's entry in ``invocations.json`` of each grid folder it works on: ``id``,
+    ``started`` (UTC), ``wall_time_s`` (so far), ``workers``, ``backend``, ``algos``, ``runs_in_grid``, ``runs`` (per
+    status, so far) and ``finished`` (``False`` until it returns: stopped by Ctrl-C or killed, it stays ``False``).
 
     :param grids: Each grid's log folder with its algorithms and its number of runs
     :param workers: Worker processes (or the Ray backend's ``"cluster"``)
@@ -62,41 +53,27 @@ class InvocationJournal:
         self.clock = clock
         self.id = uuid.uuid4().hex
         started = datetime.datetime.now(datetime.timezone.utc).isoformat()
-        self.entries: dict[str, dict[str, Any]] = {
-            folder: {
-                "id": self.id,
-                "started": started,
-                "wall_time_s": 0.0,
-                "workers": workers,
-                "backend": backend,
-                "algos": sorted(set(algos)),
-                "runs_in_grid": runs,
-                "runs": dict.fromkeys(STATUSES, 0),
-                "finished": False,
-            }
-            for folder, algos, runs in grids
-        }
+        entry = {"id": self.id, "started": started, "wall_time_s": 0.0, "workers": workers, "backend": backend}
+        self.entries: dict[str, dict[str, Any]] = {}
+        for folder, algos, runs in grids:
+            grid = {"algos": sorted(set(algos)), "runs_in_grid": runs, "runs": dict.fromkeys(STATUSES, 0)}
+            self.entries[folder] = {**entry, **grid, "finished": False}
         self._start = clock()
-        # The other invocations' entries, read once: a grid folder has one invocation working on it at a time
-        # (run_benchmarks holds the folder's lock around the journal), so no other writer adds one meanwhile.
+        # The other invocations' entries, read once: the folder's lock keeps other writers out.
         self._others: dict[str, list[dict[str, Any]]] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()
-        self._heartbeat: threading.Thread | None = None
+        self._heartbeat = threading.Thread(target=self._beat, name="invocation-journal", daemon=True)
 
     def __enter__(self) -> InvocationJournal:
         self._others = {folder: _read(os.path.join(folder, INVOCATIONS_JSON)) for folder in self.folders}
         self._write()
-        self._heartbeat = threading.Thread(target=self._beat, name="invocation-journal", daemon=True)
         self._heartbeat.start()
         return self
 
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, traceback: TracebackType | None
-    ) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, *_: object) -> None:
         self._stop.set()
-        if self._heartbeat is not None:
-            self._heartbeat.join()
+        self._heartbeat.join()
         with self._lock:
             for entry in self.entries.values():
                 entry["finished"] = exc_type is None
@@ -123,14 +100,14 @@ class InvocationJournal:
             for folder, entry in self.entries.items():
                 entry["wall_time_s"] = elapsed
                 os.makedirs(folder, exist_ok=True)
-                write_atomically(os.path.join(folder, INVOCATIONS_JSON), partial(_dump, [*self._others[folder], entry]))
+                text = json.dumps([*self._others[folder], entry], indent=2) + "\n"
+                write_atomically(os.path.join(folder, INVOCATIONS_JSON), methodcaller("write", text))
 
 
 def read_invocations(folders: Iterable[str]) -> list[dict[str, Any]]:
     """
-    The invocations recorded in grid folders, oldest first, each once: an invocation that worked on several of
-    the folders (one call of ``run_benchmarks`` with several grids) has its runs summed over them, its algorithms
-    merged and its longest wall time.
+    The invocations recorded in grid folders, oldest first, each once: one that worked on several of the folders has
+    its runs summed, its algorithms merged and its longest wall time.
 
     :param folders: The grids' log folders (those without ``invocations.json`` add nothing)
     """
@@ -150,13 +127,8 @@ def read_invocations(folders: Iterable[str]) -> list[dict[str, Any]]:
     return sorted(merged.values(), key=lambda entry: entry["started"])
 
 
-def _dump(entries: list[dict[str, Any]], stream: IO[str]) -> None:
-    stream.write(json.dumps(entries, indent=2) + "\n")
-
-
 def _read(path: str) -> list[dict[str, Any]]:
-    """The entries of an ``invocations.json`` (none if the file is absent); an unreadable file is set aside as
-    ``*.damaged`` (written atomically, it is damaged only by hand or by a broken disk) and counts as empty."""
+    """The entries of an ``invocations.json`` (none if absent); an unreadable one is set aside as ``*.damaged``."""
     if not os.path.isfile(path):
         return []
     try:

@@ -1,9 +1,6 @@
 """
-Tidy tables of the results of runs, for benchmarks and plots.
-
-- evaluation curves (``evaluations.csv``): one row per run and periodic evaluation;
-- training episodes (``episodes.csv``): one row per run and training episode;
-- final evaluations (``final.csv``): one row per run.
+Tidy tables of the results of runs, for benchmarks and plots: ``evaluations.csv`` (one row per run and periodic
+evaluation), ``episodes.csv`` (one row per run and training episode) and ``final.csv`` (one row per run).
 """
 
 from __future__ import annotations
@@ -21,23 +18,16 @@ from sb3_adc.experiment.evaluation import FinalEvaluation
 from sb3_adc.experiment.layout import RunLayout
 from sb3_adc.experiment.monitor_files import read_monitor
 
-EVALUATION_COLUMNS = (
-    "algo",
-    "env",
-    "seed",
-    "timesteps",
-    "mean_return",
-    "std_return",
-    "min_return",
-    "max_return",
-    "mean_ep_length",
-    "n_episodes",
-    "success_rate",
-)
+EVALUATION_COLUMNS: tuple[str, ...] = ("algo", "env", "seed", "timesteps", "mean_return", "std_return", "min_return")
+EVALUATION_COLUMNS += ("max_return", "mean_ep_length", "n_episodes", "success_rate")
 EPISODE_COLUMNS = ("algo", "env", "seed", "episode", "timesteps", "return", "length", "wall_time_s")
 FINAL_COLUMNS = ("algo", "env", "seed", "timesteps", "mean_return", "std_return", "n_episodes")
 
 Row = dict[str, Any]
+
+
+def _run_keys(layout: RunLayout, algo: str, seed: int) -> Row:
+    return {"algo": algo, "env": layout.env_id, "seed": seed}
 
 
 def evaluation_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
@@ -51,37 +41,22 @@ def evaluation_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
     :param seed: The run's seed
     """
     history = EvaluationHistory.load(layout.evaluations)
-    success_rates = history.success_rates() or [None for _ in history.timesteps]
+    rates = history.success_rates() or [None for _ in history.timesteps]
     rows = []
-    for step, returns, lengths, success_rate in zip(
-        history.timesteps, history.results, history.ep_lengths, success_rates, strict=True
-    ):
+    for step, returns, lengths, rate in zip(history.timesteps, history.results, history.ep_lengths, rates, strict=True):
         values = np.asarray(returns, dtype=np.float64)
-        rows.append(
-            {
-                "algo": algo,
-                "env": layout.env_id,
-                "seed": seed,
-                "timesteps": int(step),
-                "mean_return": float(values.mean()),
-                "std_return": float(values.std()),
-                "min_return": float(values.min()),
-                "max_return": float(values.max()),
-                "mean_ep_length": float(np.mean(lengths)),
-                "n_episodes": len(values),
-                "success_rate": success_rate,
-            }
-        )
+        row = {**_run_keys(layout, algo, seed), "timesteps": int(step)}
+        row.update({f"{stat}_return": float(getattr(values, stat)()) for stat in ("mean", "std", "min", "max")})
+        rows.append({**row, "mean_ep_length": float(np.mean(lengths)), "n_episodes": len(values), "success_rate": rate})
     return rows
 
 
 def episode_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
     """
-    The training episodes of a run, in the order they ended (columns :data:`EPISODE_COLUMNS`).
-
-    ``timesteps`` is the run's timestep count when the episode ended (steps of its environment times the
-    number of environments); ``wall_time_s`` the seconds the run had been training then (the monitor's ``t``,
-    evaluations included; see :func:`training_seconds` for resumed runs).
+    The training episodes of a run, in the order they ended (columns :data:`EPISODE_COLUMNS`). ``timesteps`` is the
+    run's timestep count when the episode ended (steps of its environment times the number of environments);
+    ``wall_time_s`` the seconds the run had been training then (the monitor's ``t``, evaluations included; see
+    :func:`training_seconds` for resumed runs).
 
     :param layout: The run's paths
     :param algo: The algorithm's name
@@ -92,41 +67,21 @@ def episode_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
     for path in files:
         frame = read_monitor(path)
         steps = frame[TOTAL_STEPS_KEY] if TOTAL_STEPS_KEY in frame else frame["l"].cumsum()
-        frames.append(
-            pd.DataFrame(
-                {
-                    "timesteps": steps * len(files),
-                    "return": frame["r"],
-                    "length": frame["l"],
-                    "wall_time_s": training_seconds(frame["t"].to_numpy(np.float64)),
-                }
-            )
-        )
+        columns = {"timesteps": steps * len(files), "return": frame["r"], "length": frame["l"]}
+        frames.append(pd.DataFrame({**columns, "wall_time_s": training_seconds(frame["t"].to_numpy(np.float64))}))
     if not frames:
         return []
     episodes = pd.concat(frames).sort_values("timesteps", kind="stable").reset_index(drop=True)
-    return [
-        {
-            "algo": algo,
-            "env": layout.env_id,
-            "seed": seed,
-            "episode": index + 1,
-            "timesteps": int(row.timesteps),
-            "return": float(row["return"]),
-            "length": int(row.length),
-            "wall_time_s": float(row.wall_time_s),
-        }
-        for index, row in episodes.iterrows()
-    ]
+    episodes = episodes.astype({"timesteps": int, "return": float, "length": int, "wall_time_s": float})
+    episodes.insert(0, "episode", episodes.index + 1)
+    return [{**_run_keys(layout, algo, seed), **row} for row in episodes.to_dict("records")]
 
 
 def training_seconds(monitor_times: np.ndarray) -> np.ndarray:
     """
-    Seconds of training at the end of each episode of one monitor file, across resumes.
-
-    SB3's ``Monitor`` times episodes from its own creation, so a resumed run's clock starts again at zero: each
-    restart continues from the last episode recorded before it (the time between that episode and the
-    interruption, lost work, is not counted).
+    Seconds of training at the end of each episode of one monitor file, across resumes: SB3's ``Monitor`` clock
+    starts again at zero in a resumed run, so each restart continues from the last episode recorded before it (the
+    lost work between that episode and the interruption is not counted).
 
     :param monitor_times: The monitor's ``t`` column, in file order
     """
@@ -135,8 +90,7 @@ def training_seconds(monitor_times: np.ndarray) -> np.ndarray:
         return times
     restarts = np.concatenate([[False], np.diff(times) < 0])
     # A restart adds the time reached before it to every later episode.
-    carried = np.cumsum(np.where(restarts, np.concatenate([[0.0], times[:-1]]), 0.0))
-    return times + carried
+    return times + np.cumsum(np.where(restarts, np.concatenate([[0.0], times[:-1]]), 0.0))
 
 
 def final_row(layout: RunLayout, algo: str, seed: int) -> Row | None:
@@ -150,24 +104,15 @@ def final_row(layout: RunLayout, algo: str, seed: int) -> Row | None:
     if not layout.is_finished():
         return None
     final = FinalEvaluation.load(layout.final_evaluation)
-    return {
-        "algo": algo,
-        "env": layout.env_id,
-        "seed": seed,
-        "timesteps": final.timesteps,
-        "mean_return": final.mean_return,
-        "std_return": final.std_return,
-        "n_episodes": len(final.returns),
-    }
+    stats = {"timesteps": final.timesteps, "mean_return": final.mean_return, "std_return": final.std_return}
+    return {**_run_keys(layout, algo, seed), **stats, "n_episodes": len(final.returns)}
 
 
 def read_table(path: str | os.PathLike[str]) -> pd.DataFrame:
     """
-    Read a results table (CSV, or ``.csv.gz``) with its floats exactly as written. pandas writes the shortest
-    representation that round-trips; its default parser can read it back one unit in the last place off, and a
-    statistic computed from it can then print differently from the same statistic computed when the table was
-    written (0.9249999999999999 prints as 0.92, read back as 0.925 it prints as 0.93). Every script that reads
-    tables back reads them here.
+    Read a results table (CSV, or ``.csv.gz``) with its floats exactly as written: pandas' default parser can read
+    the shortest round-tripping representation back one unit in the last place off (0.925 -> 0.9249999999999999),
+    and a statistic then prints differently. Every script that reads tables back reads them here.
 
     :param path: The table
     :return: The table
@@ -187,8 +132,7 @@ def write_table(rows: list[Row], columns: tuple[str, ...], path: str) -> pd.Data
     table = pd.DataFrame(rows, columns=list(columns))
     if not table.empty:
         table = table.sort_values(list(columns[:4]), kind="stable").reset_index(drop=True)
-    directory = os.path.dirname(path)
-    if directory:
-        os.makedirs(directory, exist_ok=True)
+    if os.path.dirname(path):
+        os.makedirs(os.path.dirname(path), exist_ok=True)
     write_atomically(path, lambda stream: table.to_csv(stream, index=False))
     return table

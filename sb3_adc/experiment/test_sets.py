@@ -1,19 +1,15 @@
 """
-Held-out test sets of an experiment (the ``test_sets`` key of its file, :mod:`sb3_adc.experiment.experiments`): after
-the runs are trained, each finished run's final model (or ``best_model.zip``) drives deterministic episodes on
-settings it never trained on, the Procgen/MetaDrive protocol. A test set is ``gym.make`` keywords over the run's
-entry's ``env_kwargs`` and one of: ``layout_seeds`` (procedural courses: one episode per layout seed, reset to that
-layout and seeded by it), ``courses`` (course files: ``episodes`` episodes each, seeded 0, 1, ...), or neither
-(``episodes`` episodes seeded 0, 1, ...). An episode succeeds when its last ``info["is_success"]`` is true (the lidar
-course: no collision in 500 steps).
+Held-out test sets of an experiment (its file's ``test_sets``, :mod:`sb3_adc.experiment.experiments`): each finished
+run's final model (or ``best_model.zip``) drives deterministic episodes on settings it never trained on (the
+Procgen/MetaDrive protocol): ``gym.make`` keywords over the run's ``env_kwargs`` and ``layout_seeds`` (one episode per
+procedural layout, reset to it and seeded by it), ``courses`` (course files, ``episodes`` each, seeded 0, 1, ...) or
+neither (``episodes`` seeded 0, 1, ...). An episode succeeds when its last ``info["is_success"]`` is true.
 
-Tables in the results folder: ``test_episodes.csv`` (one row per episode: ``config``, ``env``, ``seed``,
-``test_set``, ``episode``, ``course`` (empty without ``courses``), ``success``, ``return``, ``length``, and on the
-lidar courses what a failed episode ended against, ``hit``, and whether the lidar had shown it in time,
-``hit_unseen``, see :data:`SIGHTING`), ``test_runs.csv`` (per run and test set: its success rate) and
-``test_summary.{csv,md}`` (per environment, test set and configuration: IQM and mean success rate with 95%
-stratified-bootstrap CIs, P(reference > configuration)). Scoring is resumable: the runs whose rows were scored with
-the test set's current settings (``test_sets.json``) are kept.
+Tables in the results folder: ``test_episodes.csv`` (per episode: ``config``, ``env``, ``seed``, ``test_set``,
+``episode``, ``course``, ``success``, ``return``, ``length``, and on the lidar courses what a failed episode hit,
+``hit``, and whether the lidar had shown it in time, ``hit_unseen``, see :data:`SIGHTING`), ``test_runs.csv`` (per run
+and test set: :func:`run_rates`) and ``test_summary.{csv,md}`` (:func:`summary`). Scoring is resumable: the rows
+scored with a test set's current settings (``test_sets.json``) are kept.
 """
 
 from __future__ import annotations
@@ -21,17 +17,14 @@ from __future__ import annotations
 import json
 import os
 from collections import deque
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import pandas as pd
-
-if TYPE_CHECKING:
-    from sb3_adc.experiment.backends import RunOutcome
-    from sb3_adc.experiment.benchmark import BenchmarkSettings
 
 #: Keys of one test set, and the models a test set can score.
 TEST_SET_KEYS = ("env_kwargs", "layout_seeds", "courses", "episodes", "model")
@@ -72,8 +65,7 @@ class TestSet:
 
     def tiny(self) -> TestSet:
         """Two layouts, or one episode of the first course: the pipeline in seconds."""
-        start = self.layout_seeds[0] if self.layout_seeds else 0
-        layouts = (start, start + 2) if self.layout_seeds else None
+        layouts = None if self.layout_seeds is None else (self.layout_seeds[0], self.layout_seeds[0] + 2)
         return replace(self, layout_seeds=layouts, courses=None if self.courses is None else self.courses[:1], episodes=1)
 
     def record(self) -> dict[str, Any]:
@@ -202,17 +194,10 @@ def run_rates(episodes: pd.DataFrame) -> pd.DataFrame:
 
     :param episodes: ``test_episodes.csv``
     """
-    episodes = episodes.assign(
-        hit_obstacle=episodes["hit"].fillna("").map(lambda hit: bool(set(hit.split(";")) - {"", "wall"})),
-    )
-    grouped = episodes.groupby([*RUN_KEYS, "test_set"], sort=False)
-    rates = grouped.agg(
-        episodes=("success", "size"),
-        successes=("success", "sum"),
-        mean_return=("return", "mean"),
-        hit_obstacle=("hit_obstacle", "sum"),
-        hit_unseen=("hit_unseen", "sum"),
-    ).reset_index()
+    hit_obstacle = episodes["hit"].fillna("").map(lambda hit: bool(set(hit.split(";")) - {"", "wall"}))
+    grouped = episodes.assign(hit_obstacle=hit_obstacle).groupby([*RUN_KEYS, "test_set"], sort=False)
+    counts = {"episodes": ("success", "size"), "successes": ("success", "sum"), "mean_return": ("return", "mean")}
+    rates = grouped.agg(**counts, hit_obstacle=("hit_obstacle", "sum"), hit_unseen=("hit_unseen", "sum")).reset_index()
     return rates.assign(success_rate=rates["successes"] / rates["episodes"])
 
 
@@ -227,19 +212,13 @@ def score(runs: dict[tuple[str, str, int], str], test_sets: dict[str, TestSet], 
     :param workers: Runs scored in parallel
     """
     path, settings_path = os.path.join(output, EPISODES_CSV), os.path.join(output, SETTINGS_JSON)
-    recorded: dict[str, Any] = {}
-    if os.path.isfile(settings_path):
-        with open(settings_path, encoding="utf-8") as stream:
-            recorded = json.load(stream)
+    recorded = json.loads(Path(settings_path).read_text(encoding="utf-8")) if os.path.isfile(settings_path) else {}
     table = pd.read_csv(path) if os.path.isfile(path) else pd.DataFrame(columns=[*RUN_KEYS, "test_set"])
     current = {name: test.record() for name, test in test_sets.items()}
     table = table[table["test_set"].map(lambda name: recorded.get(name) == current.get(name)).astype(bool)]
     done = set(zip(table["config"], table["env"], table["seed"].astype(int), table["test_set"], strict=True))
-    jobs = []
-    for (config, env, seed), run_dir in runs.items():
-        todo = {name: test for name, test in test_sets.items() if (config, env, seed, name) not in done}
-        if todo:
-            jobs.append((run_dir, {"config": config, "env": env, "seed": seed}, todo))
+    todo = {run: {name: test for name, test in test_sets.items() if (*run, name) not in done} for run in runs}
+    jobs = [(runs[run], dict(zip(RUN_KEYS, run, strict=True)), sets) for run, sets in todo.items() if sets]
     if workers > 1 and len(jobs) > 1:
         with ProcessPoolExecutor(max_workers=workers) as pool:
             scored = list(pool.map(score_run, *zip(*jobs, strict=True)))
@@ -254,33 +233,7 @@ def score(runs: dict[tuple[str, str, int], str], test_sets: dict[str, TestSet], 
     os.makedirs(output, exist_ok=True)
     table.to_csv(path, index=False)
     run_rates(table).to_csv(os.path.join(output, RUNS_CSV), index=False)
-    with open(settings_path, "w", encoding="utf-8") as stream:
-        stream.write(json.dumps(current, indent=2) + "\n")
-
-
-def score_outcomes(
-    outcomes: Sequence[RunOutcome],
-    grids: Mapping[str, BenchmarkSettings],
-    test_sets: dict[str, TestSet],
-    output: str,
-    workers: int,
-) -> None:
-    """
-    :func:`score` the finished runs of an experiment's grids.
-
-    :param outcomes: The runs' outcomes
-    :param grids: Configuration name -> its grid
-    :param test_sets: Name -> test set
-    :param output: The experiment's results folder
-    :param workers: Runs scored in parallel
-    """
-    names = {os.path.normpath(grid.log_folder): name for name, grid in grids.items()}
-    finished = {
-        (names[os.path.normpath(run.log_folder)], run.spec.env_id, run.spec.seed): run.spec.run_dir(run.log_folder)
-        for run in outcomes
-        if run.final is not None
-    }
-    score(finished, test_sets, output, workers)
+    Path(settings_path).write_text(json.dumps(current, indent=2) + "\n", encoding="utf-8")
 
 
 def summary(rates: pd.DataFrame, references: Mapping[str, str | None], reps: int) -> pd.DataFrame:
@@ -348,5 +301,4 @@ def write_summary(output: str, references: Mapping[str, str | None], reps: int) 
         return
     table = summary(pd.read_csv(path), references, reps)
     table.to_csv(os.path.join(output, SUMMARY_CSV), index=False)
-    with open(os.path.join(output, "test_summary.md"), "w", encoding="utf-8") as stream:
-        stream.write(markdown(table))
+    Path(output, "test_summary.md").write_text(markdown(table), encoding="utf-8")
