@@ -1,7 +1,4 @@
-"""
-The critic diagnostics of a TD3-family model and the callback that logs them during training (see
-:mod:`sb3_adc.diagnostics`).
-"""
+"""The critic diagnostics of a TD3-family model and the callback that logs them (see :mod:`sb3_adc.diagnostics`)."""
 
 from __future__ import annotations
 
@@ -27,17 +24,12 @@ EVAL_KEYS = ("eval/critic_bias", "eval/critic_bias_abs", "eval/mc_return_mean", 
 #: Keys of :func:`gradient_norms`.
 GRADIENT_KEYS = ("train/actor_grad_norm", "train/dq_da_norm")
 #: Scalar keys of the dueling interval critic (ADC only).
-INTERVAL_KEYS = (
-    "train/interval_visits_min_fraction",
-    "train/interval_visits_unvisited",
-    "train/advantage_roughness",
-    "train/advantage_neighbour_diff",
-)
+INTERVAL_KEYS: tuple[str, ...] = ("train/interval_visits_min_fraction", "train/interval_visits_unvisited")
+INTERVAL_KEYS += ("train/advantage_roughness", "train/advantage_neighbour_diff")
 
 
 def _check_td3_family(model: BaseAlgorithm) -> None:
-    """Raise ``TypeError`` unless ``model`` has what the diagnostics read: an actor, a critic with ``q1_forward``,
-    a replay buffer and a ``Box`` action space."""
+    """Raise ``TypeError`` unless ``model`` has what the diagnostics read."""
     missing = [name for name in ("actor", "critic", "replay_buffer", "gamma") if not hasattr(model, name)]
     if missing or not hasattr(getattr(model, "critic", None), "q1_forward") or not isinstance(model.action_space, spaces.Box):
         raise TypeError(
@@ -48,7 +40,7 @@ def _check_td3_family(model: BaseAlgorithm) -> None:
 
 def is_interval_critic(model: BaseAlgorithm) -> bool:
     """
-    Whether the model's critic is ADC's dueling interval critic (it has a ``partition`` of the action range).
+    Whether the model's critic is ADC's dueling interval critic (it has a ``partition``).
 
     :param model: A TD3-family model
     """
@@ -71,9 +63,8 @@ def discounted_returns(rewards: np.ndarray, gamma: float) -> np.ndarray:
 
 def truncation_weights(length: int, gamma: float, truncated: bool) -> np.ndarray:
     """
-    The weight ``gamma^H`` of the return missing from the Monte-Carlo return of each step of an episode cut at
-    truncation, ``H = T - t`` steps before the cut: ``G_t`` lacks ``gamma^H V(s_T)``. Zero for an episode that
-    terminated (its returns are exact).
+    The weight ``gamma^H`` of the return ``gamma^H V(s_T)`` missing from ``G_t`` of each step of an episode cut at
+    truncation, ``H = T - t`` steps before the cut; zero for an episode that terminated.
 
     :param length: Number of steps ``T`` of the episode
     :param gamma: Discount factor
@@ -104,34 +95,23 @@ def _check_evaluation_options(n_eval_episodes: object, tolerance: object) -> Non
 
 
 def evaluate_critic(
-    model: BaseAlgorithm,
-    env: gym.Env | VecEnv,
-    n_eval_episodes: int = 5,
-    truncation_tolerance: float = 0.05,
+    model: BaseAlgorithm, env: gym.Env | VecEnv, n_eval_episodes: int = 5, truncation_tolerance: float = 0.05
 ) -> dict[str, float]:
     """
-    The critic's estimation bias on deterministic evaluation rollouts: ``Q(s_t, a_t) - G_t``, with ``Q`` from the
-    first critic network (``critic.q1_forward``, at the scaled action) and ``G_t`` the discounted Monte-Carlo return
-    with the model's ``gamma`` (the TD3 paper's over-estimation measure, Fujimoto et al., 2018, Figure 1).
+    The critic's estimation bias ``Q(s_t, a_t) - G_t`` on deterministic rollouts of SB3's ``evaluate_policy``
+    (the TD3 paper's over-estimation measure): ``Q`` from ``critic.q1_forward`` at the scaled action, ``G_t`` the
+    discounted Monte-Carlo return of the rewards the environment returns, with the model's ``gamma``.
 
-    Episodes cut by a time limit make ``G_t`` miss ``gamma^H V(s_T)`` of the return the critic learns (SB3
-    bootstraps through time limits), ``H`` steps before the cut: near the end of a truncated episode ``G_t`` is far
-    from that return (too high where values are negative, as on Pendulum, too low where positive). So the statistics are
-    taken over the first part of each truncated episode, the steps with ``gamma^H <= truncation_tolerance`` (all
-    steps of an episode that terminated); an episode too short for any such step contributes its first step only.
-    ``eval/mc_truncation_weight``, the mean ``gamma^H`` of the steps used, bounds what the cut can hide:
-    ``|G_t - true return| <= gamma^H max|V|``.
-
-    The rollouts use SB3's :func:`~stable_baselines3.common.evaluation.evaluate_policy`; the returns use the rewards
-    the environment returns (those the critic learns from, normalised by a ``VecNormalize`` if there is one).
+    A truncated episode's ``G_t`` misses ``gamma^H V(s_T)``, ``H`` steps before the cut (SB3 bootstraps through
+    time limits), so only its steps with ``gamma^H <= truncation_tolerance`` count (at least its first step);
+    every step of an episode that terminated counts. ``eval/mc_truncation_weight``, the mean ``gamma^H`` of the
+    steps used, bounds the error: ``|G_t - true return| <= gamma^H max|V|``.
 
     :param model: A TD3-family model
     :param env: The evaluation environment (a separate instance from the training one)
     :param n_eval_episodes: Number of episodes
-    :param truncation_tolerance: Largest ``gamma^H`` of a step of a truncated episode that the statistics use,
-        in ``(0, 1]``
-    :return: ``eval/critic_bias`` (mean ``Q - G``), ``eval/critic_bias_abs`` (mean ``|Q - G|``),
-        ``eval/mc_return_mean``, ``eval/q_mean`` and ``eval/mc_truncation_weight``, over the steps used
+    :param truncation_tolerance: Largest ``gamma^H`` of a used step of a truncated episode, in ``(0, 1]``
+    :return: The means over the steps used of :data:`EVAL_KEYS`: ``Q - G``, ``|Q - G|``, ``G``, ``Q``, ``gamma^H``
     """
     _check_evaluation_options(n_eval_episodes, truncation_tolerance)
     _check_td3_family(model)
@@ -143,17 +123,16 @@ def evaluate_critic(
 
     def record_step(local_vars: dict[str, Any], _globals: dict[str, Any]) -> None:
         # evaluate_policy calls this for each env ``i`` after each step, before it moves on to the next observation.
-        index = local_vars["i"]
-        observations = local_vars["observations"]
-        obs = {key: value[index] for key, value in observations.items()} if isinstance(observations, dict) else None
-        obs = observations[index] if obs is None else obs
+        index, observations = local_vars["i"], local_vars["observations"]
+        is_dict = isinstance(observations, dict)
+        obs = {key: value[index] for key, value in observations.items()} if is_dict else observations[index]
         current[index].append((obs, np.asarray(local_vars["actions"][index]), float(local_vars["reward"])))
         if local_vars["done"]:
             episodes.append((current[index], bool(local_vars["info"].get("TimeLimit.truncated", False))))
             current[index] = []
 
     evaluate_policy(model, env, n_eval_episodes, deterministic=True, callback=record_step, warn=False)
-    q_values, mc_returns, weights = [], [], []
+    used_steps = []  # per episode: Q, G and gamma^H of the steps used
     for steps, truncated in episodes:
         observations = _stack_observations([obs for obs, _, _ in steps])
         actions = model.policy.scale_action(np.stack([action for _, action, _ in steps]))
@@ -163,32 +142,22 @@ def evaluate_critic(
         returns = discounted_returns(np.array([reward for _, _, reward in steps]), gamma)
         weight = truncation_weights(len(steps), gamma, truncated)
         used = weight <= truncation_tolerance
-        if not used.any():
-            used[0] = True
-        q_values.append(q.cpu().numpy().reshape(-1)[used])
-        mc_returns.append(returns[used])
-        weights.append(weight[used])
-    q_all, g_all = np.concatenate(q_values).astype(np.float64), np.concatenate(mc_returns)
+        used[0] |= not used.any()  # at least the first step
+        used_steps.append((q.cpu().numpy().reshape(-1)[used], returns[used], weight[used]))
+    q_all, g_all, weights = (np.concatenate(values).astype(np.float64) for values in zip(*used_steps, strict=True))
     bias = q_all - g_all
-    return {
-        "eval/critic_bias": float(bias.mean()),
-        "eval/critic_bias_abs": float(np.abs(bias).mean()),
-        "eval/mc_return_mean": float(g_all.mean()),
-        "eval/q_mean": float(q_all.mean()),
-        "eval/mc_truncation_weight": float(np.concatenate(weights).mean()),
-    }
+    means = (bias, np.abs(bias), g_all, q_all, weights)
+    return {key: float(values.mean()) for key, values in zip(EVAL_KEYS, means, strict=True)}
 
 
 def gradient_norms(model: BaseAlgorithm, observations: PyTorchObs) -> dict[str, float]:
     """
-    How strongly the critic pushes the actor on a batch of observations, without stepping any optimizer and
-    leaving no gradient in any parameter's ``.grad``.
+    How strongly the critic pushes the actor on a batch of observations (no optimizer step, no ``.grad`` left).
 
     :param model: A TD3-family model
     :param observations: A batch of observations (as the replay buffer samples them)
-    :return: ``train/actor_grad_norm``, the L2 norm over all the actor's parameters of the gradient of TD3's actor
-        loss ``-Q(s, mu(s)).mean()``, and ``train/dq_da_norm``, the mean over the batch of ``|dQ/da|`` at
-        ``a = mu(s)`` (in the scaled action space ``[-1, 1]``)
+    :return: ``train/actor_grad_norm``, the L2 norm of the gradient of TD3's actor loss over the actor's parameters,
+        and ``train/dq_da_norm``, the batch mean of ``|dQ/da|`` at ``a = mu(s)`` (scaled actions)
     """
     _check_td3_family(model)
     actor, critic = model.actor, model.critic  # type: ignore[attr-defined]
@@ -208,8 +177,7 @@ def interval_visits(model: BaseAlgorithm) -> np.ndarray:
     ADC only: how many of the actions stored in the replay buffer fall in each interval of the critic's partition.
 
     :param model: An ADC model
-    :return: ``int64`` counts ``(action_dim, n_intervals)``; they sum to the number of stored transitions times
-        ``action_dim``
+    :return: ``int64`` counts ``(action_dim, n_intervals)``
     """
     if not is_interval_critic(model):
         raise TypeError(f"interval visits need ADC's dueling interval critic, got {type(model).__name__}")
@@ -228,32 +196,25 @@ def advantage_roughness(advantages: th.Tensor) -> dict[str, float]:
     """
     How smooth an advantage is across neighbouring intervals.
 
-    :param advantages: ``(batch, branches, n_intervals)``, as :meth:`~sb3_adc.DuelingIntervalCritic.decompose`
-        returns them
-    :return: ``train/advantage_neighbour_diff``, the mean ``|A(z + 1) - A(z)|`` over neighbours, and
-        ``train/advantage_roughness``, that divided by the advantage's standard deviation over the intervals
-        (averaged over the batch and branches): scale-free, 0 for an advantage constant in ``z``,
-        ``sqrt(12 / (n^2 - 1))`` (about ``3.5 / n``) for one linear in ``z`` over ``n`` intervals and about
-        ``2 / sqrt(pi) = 1.13`` for independent noise
+    :param advantages: ``(batch, branches, n_intervals)``, from :meth:`~sb3_adc.DuelingIntervalCritic.decompose`
+    :return: ``train/advantage_neighbour_diff``, the mean ``|A(z + 1) - A(z)|``, and ``train/advantage_roughness``,
+        that over the advantage's mean standard deviation across intervals: 0 for a constant advantage, about
+        ``3.5 / n`` for one linear over ``n`` intervals, about 1.13 for independent noise
     """
-    neighbour_diff = float((advantages[..., 1:] - advantages[..., :-1]).abs().mean())
+    diff = float((advantages[..., 1:] - advantages[..., :-1]).abs().mean())
     spread = float(advantages.std(dim=-1, correction=0).mean())
-    return {
-        "train/advantage_neighbour_diff": neighbour_diff,
-        "train/advantage_roughness": neighbour_diff / spread if spread > 0 else 0.0,
-    }
+    return {"train/advantage_neighbour_diff": diff, "train/advantage_roughness": diff / spread if spread > 0 else 0.0}
 
 
 def batch_diagnostics(model: BaseAlgorithm, batch_size: int | None = None) -> dict[str, Any]:
     """
-    The diagnostics of one replay batch: :func:`gradient_norms` and, for ADC, the interval visits of the whole
-    buffer and the advantage's roughness and profile on the batch.
+    The diagnostics of one replay batch: :func:`gradient_norms` and, for ADC, the buffer's interval visits and the
+    advantage's roughness and profile.
 
     :param model: A TD3-family model with a non-empty replay buffer
     :param batch_size: Size of the batch; ``None``: the model's ``batch_size``
-    :return: The keys of :data:`GRADIENT_KEYS`, and for ADC those of :data:`INTERVAL_KEYS`,
-        :data:`INTERVAL_VISITS_KEY` (counts ``(action_dim, n_intervals)``) and :data:`ADVANTAGE_PROFILE_KEY` (the
-        advantage centred on its mean over the intervals, averaged over the batch: ``(branches, n_intervals)``)
+    :return: :data:`GRADIENT_KEYS`, and for ADC :data:`INTERVAL_KEYS`, :data:`INTERVAL_VISITS_KEY` and
+        :data:`ADVANTAGE_PROFILE_KEY` (the centred advantage averaged over the batch, ``(branches, n_intervals)``)
     """
     _check_td3_family(model)
     buffer = model.replay_buffer  # type: ignore[attr-defined]
@@ -276,28 +237,18 @@ def batch_diagnostics(model: BaseAlgorithm, batch_size: int | None = None) -> di
 
 class CriticDiagnosticsCallback(BaseCallback):
     """
-    Log the critic diagnostics of a TD3-family model (ADC, TD3, DDPG, SplitRateDDPG) during training.
+    Log the critic diagnostics of a TD3-family model (ADC, TD3, DDPG, SplitRateDDPG) during training:
+    :func:`evaluate_critic` every ``eval_freq`` calls, :func:`batch_diagnostics` every ``log_freq`` calls (calls
+    count steps of the vectorised training environment, as with SB3's ``EvalCallback``). The values go to the
+    logger and to :attr:`history`, one record per log time, written to ``save_path`` after each record.
 
-    - every ``eval_freq`` calls: :func:`evaluate_critic` on ``n_eval_episodes`` deterministic rollouts of
-      ``eval_env`` (the critic's bias against discounted Monte-Carlo returns, cut at truncation: see there);
-    - every ``log_freq`` calls: :func:`batch_diagnostics` on one replay batch (the actor-gradient and ``dQ/da``
-      norms; for ADC the interval visits and the advantage's roughness).
-
-    The values go to the logger (``eval/...`` and ``train/...`` keys, written at the model's next dump) and to
-    :attr:`history`, one record per log time, which is written to ``save_path`` after each record
-    (:func:`save_history`). As with SB3's ``EvalCallback``, the frequencies count calls of the callback, that is
-    steps of the vectorised training environment.
-
-    :param eval_env: The evaluation environment: an environment, a ``VecEnv`` or a Gymnasium id (made with one
-        environment); it must be a separate instance from the training environment
+    :param eval_env: The evaluation environment, a ``VecEnv`` or a Gymnasium id (not the training environment)
     :param eval_freq: Evaluate the critic every ``eval_freq`` calls, an integer >= 1
     :param n_eval_episodes: Evaluation episodes per evaluation, an integer >= 1
     :param log_freq: Compute the batch diagnostics every ``log_freq`` calls, an integer >= 1
     :param batch_size: Size of the replay batch (an integer >= 1); ``None``: the model's ``batch_size``
-    :param truncation_tolerance: Largest ``gamma^H`` of a step of a truncated episode used for the bias, in
-        ``(0, 1]`` (see :func:`evaluate_critic`)
-    :param save_path: Folder to write the history to (``critic_diagnostics.npz`` and ``.csv``); ``{seed}`` in it
-        stands for the model's seed, so that one setting serves every run of a grid; ``None``: keep it in memory only
+    :param truncation_tolerance: See :func:`evaluate_critic`, in ``(0, 1]``
+    :param save_path: Folder of the history, ``{seed}`` standing for the model's seed; ``None``: in memory only
     :param verbose: 1 to print the bias after each evaluation
     """
 
@@ -317,8 +268,7 @@ class CriticDiagnosticsCallback(BaseCallback):
         _check_positive_int("log_freq", log_freq)
         if batch_size is not None:
             _check_positive_int("batch_size", batch_size)
-        # Checked here too, so that a bad option fails before training rather than at the first evaluation.
-        _check_evaluation_options(n_eval_episodes, truncation_tolerance)
+        _check_evaluation_options(n_eval_episodes, truncation_tolerance)  # fail before training
         if isinstance(eval_env, str):
             eval_env = make_vec_env(eval_env, n_envs=1)
         elif not isinstance(eval_env, VecEnv):

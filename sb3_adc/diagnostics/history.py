@@ -1,8 +1,4 @@
-"""
-The history of :class:`~sb3_adc.diagnostics.CriticDiagnosticsCallback`: written to and read from a folder
-(:func:`save_history`, :func:`load_history`), and drawn for several models (:func:`plot_diagnostics`, ``experiment``
-extra).
-"""
+"""The history of :class:`~sb3_adc.diagnostics.CriticDiagnosticsCallback`: saved, loaded and drawn."""
 
 from __future__ import annotations
 
@@ -34,12 +30,9 @@ def _scalar_keys(history: History) -> list[str]:
 
 def save_history(history: History, folder: str) -> tuple[str, str]:
     """
-    Write a history to ``folder``, each file through a temporary file:
-
-    - ``critic_diagnostics.npz``: ``timesteps``; one array per scalar key over all records (NaN where a record
-      lacks it); each array key stacked over the records that have it, with their ``<key>_timesteps`` and
-      indices ``<key>_records``;
-    - ``critic_diagnostics.csv``: ``timesteps`` and the scalar keys.
+    Write a history to ``folder``, each file atomically: ``critic_diagnostics.npz`` (``timesteps``, each scalar key
+    over all records with NaN where a record lacks it, each array key stacked over the records that have it with
+    their ``<key>_timesteps`` and indices ``<key>_records``) and ``critic_diagnostics.csv`` (the scalars).
 
     :param history: The records (:attr:`CriticDiagnosticsCallback.history`)
     :param folder: The folder (created if needed)
@@ -95,9 +88,7 @@ def load_history(path: str) -> History:
 
 def _runs(value: History | Sequence[History]) -> list[History]:
     """One history, or several runs' histories, as a list of runs."""
-    if len(value) > 0 and isinstance(value[0], dict):
-        return [value]  # type: ignore[list-item]
-    return list(value)  # type: ignore[arg-type]
+    return [value] if len(value) > 0 and isinstance(value[0], dict) else list(value)  # type: ignore[list-item, arg-type]
 
 
 def _last_array(runs: list[History], key: str) -> np.ndarray | None:
@@ -111,15 +102,9 @@ def plot_diagnostics(
     histories: Mapping[str, History | Sequence[History]], path: str, title: str = "", reps: int = 2000
 ) -> str:
     """
-    Draw the critic diagnostics of one or several models as a PNG.
-
-    Panels: the critic's bias ``Q - G`` against timesteps (mean over runs, with a 95% stratified-bootstrap band
-    when a model has several runs, computed by :func:`sb3_adc.experiment.statistics.learning_curves`); the
-    actor-gradient norm against timesteps; for the ADC models, the fraction of the stored actions in each interval
-    at the last record (averaged over action dimensions and runs) and the advantage profile across intervals (the
-    last record's centred advantage averaged over its replay batch, branches and runs).
-
-    Needs the ``experiment`` extra (matplotlib, pandas, rliable).
+    Draw the critic diagnostics of one or several models as a PNG (``experiment`` extra): the critic's bias and the
+    actor-gradient norm against timesteps (mean over runs, with a 95% stratified-bootstrap band for several runs),
+    and for ADC models the fraction of stored actions per interval and the advantage profile at the last record.
 
     :param histories: Label -> one history, or a list of histories (one per run), e.g. from :func:`load_history`
     :param path: The PNG file
@@ -130,49 +115,32 @@ def plot_diagnostics(
     import pandas as pd
     from matplotlib.figure import Figure
 
+    from sb3_adc.experiment.plots import _curve
     from sb3_adc.experiment.statistics import learning_curves
 
     runs_by_label = {label: _runs(value) for label, value in histories.items()}
     colors = {label: f"C{index % 10}" for index, label in enumerate(runs_by_label)}
-    with_intervals = [label for label, runs in runs_by_label.items() if _last_array(runs, INTERVAL_VISITS_KEY) is not None]
-    n_rows = 2 if with_intervals else 1
-    figure = Figure(figsize=(6.4 * 2, 4.0 * n_rows), layout="constrained")
-    axes = list(figure.subplots(n_rows, 2, squeeze=False).flat)
-    curve_panels = (
-        ("eval/critic_bias", "critic bias Q - G (return units)", "Critic bias on evaluation rollouts"),
-        ("train/actor_grad_norm", "actor-loss gradient norm (L2)", "Actor-gradient norm on replay batches"),
-    )
-    for ax, (key, ylabel, panel_title) in zip(axes[:2], curve_panels, strict=True):
+    last_visits = {label: _last_array(runs, INTERVAL_VISITS_KEY) for label, runs in runs_by_label.items()}
+    visits = {label: counts for label, counts in last_visits.items() if counts is not None}
+    figure = Figure(figsize=(6.4 * 2, 4.0 * (2 if visits else 1)), layout="constrained")
+    axes = list(figure.subplots(2 if visits else 1, 2, squeeze=False).flat)
+    for ax, key in zip(axes[:2], ("eval/critic_bias", "train/actor_grad_norm"), strict=True):
         for label, runs in runs_by_label.items():
             rows = [
-                {"env": key, "algo": label, "seed": seed, "timesteps": record["timesteps"], "mean_return": record[key]}
-                for seed, run in enumerate(runs)
-                for record in run
-                if key in record
+                (seed, record["timesteps"], record[key]) for seed, run in enumerate(runs) for record in run if key in record
             ]
             if rows:
-                curves = learning_curves(pd.DataFrame(rows), reps=reps)
+                table = pd.DataFrame(rows, columns=["seed", "timesteps", "mean_return"]).assign(env=key, algo=label)
+                curves = learning_curves(table, reps=reps)
                 n_runs = int(curves["n_runs"].iloc[0])
-                ax.plot(
-                    curves["timesteps"],
-                    curves["mean"],
-                    color=colors[label],
-                    label=f"{label} ({n_runs} run{'s' * (n_runs > 1)})",
-                )
-                if n_runs > 1:
-                    ax.fill_between(
-                        curves["timesteps"], curves["mean_ci_low"], curves["mean_ci_high"], color=colors[label], alpha=0.2
-                    )
-        if key == "eval/critic_bias":
-            ax.axhline(0.0, color="black", linewidth=0.8, linestyle=":")
-        ax.set(title=panel_title, xlabel="timesteps", ylabel=ylabel)
+                name = f"{label} ({n_runs} run{'s' * (n_runs > 1)})"
+                _curve(ax, curves, "timesteps", "mean", colors[label], name, band=n_runs > 1)
+    axes[0].axhline(0.0, color="black", linewidth=0.8, linestyle=":")
 
     def centres(n_intervals: int) -> np.ndarray:
         return -1.0 + (2.0 * np.arange(n_intervals) + 1.0) / n_intervals
 
-    for label in with_intervals:
-        counts = _last_array(runs_by_label[label], INTERVAL_VISITS_KEY)
-        assert counts is not None
+    for label, counts in visits.items():
         fraction = (counts / counts.sum(axis=-1, keepdims=True)).mean(axis=0)
         n_intervals = fraction.shape[-1]
         axes[2].step(
@@ -182,17 +150,14 @@ def plot_diagnostics(
         profile = _last_array(runs_by_label[label], ADVANTAGE_PROFILE_KEY)
         if profile is not None:
             axes[3].plot(centres(profile.shape[-1]), profile.mean(axis=0), color=colors[label], label=label)
-    if with_intervals:
-        axes[2].set(
-            title="Replay-buffer actions per interval (last record; dotted: uniform)", ylabel="fraction of stored actions"
-        )
-        axes[3].set(
-            title="Advantage across intervals (last record, replay-batch mean)",
-            ylabel="A(s, z) - mean_z A(s, z) (return units)",
-        )
-        for ax in axes[2:]:
-            ax.set_xlabel("scaled action, interval centre")
-    for ax in axes:
+    panels = (  # title and y label of each panel
+        ("Critic bias on evaluation rollouts", "critic bias Q - G (return units)"),
+        ("Actor-gradient norm on replay batches", "actor-loss gradient norm (L2)"),
+        ("Replay-buffer actions per interval (last record; dotted: uniform)", "fraction of stored actions"),
+        ("Advantage across intervals (last record, replay-batch mean)", "A(s, z) - mean_z A(s, z) (return units)"),
+    )
+    for index, (ax, (panel_title, ylabel)) in enumerate(zip(axes, panels, strict=False)):
+        ax.set(title=panel_title, xlabel="timesteps" if index < 2 else "scaled action, interval centre", ylabel=ylabel)
         ax.grid(alpha=0.3)
         if ax.has_data():
             ax.legend(fontsize="small")

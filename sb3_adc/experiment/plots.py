@@ -1,9 +1,6 @@
 """
-Figures and tables of benchmark results: learning curves with 95% bootstrap CIs, across-run reward-variance
-curves (the ADC paper's Figures 5 and 8), final performance (IQM and mean with 95% stratified-bootstrap CIs),
-rliable's performance profiles and probability of improvement.
-
-Needs the ``experiment`` extra (matplotlib, pandas, rliable).
+Figures and tables of benchmark results (:mod:`~sb3_adc.experiment.statistics`), with rliable's performance profiles
+and probability of improvement. Needs the ``experiment`` extra (matplotlib, pandas, rliable).
 """
 
 from __future__ import annotations
@@ -13,6 +10,8 @@ import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -26,32 +25,16 @@ with requires_extra("experiment", "the benchmark figures"):
     from matplotlib.lines import Line2D
     from rliable import plot_utils
 
-    from sb3_adc.experiment.statistics import (
-        episode_variance,
-        final_performance,
-        has_wall_times,
-        last_evaluations,
-        learning_curves,
-        markdown_table,
-        performance_profiles,
-        probability_of_improvement,
-        wallclock_curves,
-    )
+    from sb3_adc.experiment import statistics as stats
 
 #: Algorithm id (``--algo``) -> the name the figures give it, as the paper's text does.
-ALGO_DISPLAY_NAMES: dict[str, str] = {
-    "adc": "ADC",
-    "ddpg": "DDPG",
-    "td3": "TD3",
-    "sac": "SAC",
-    "vanilla_ac": "vanilla actor-critic",
-    "dqn": "dueling DQN, 25 actions",
-}
+ALGO_DISPLAY_NAMES: dict[str, str] = dict(
+    adc="ADC", ddpg="DDPG", td3="TD3", sac="SAC", vanilla_ac="vanilla actor-critic", dqn="dueling DQN, 25 actions"
+)
 
 #: Legend of the final-performance figure: the marker of each statistic.
 _METRIC_MARKERS = [
-    Line2D([], [], marker="o", color="black", linestyle="none", label="IQM"),
-    Line2D([], [], marker="s", color="black", linestyle="none", label="mean"),
+    Line2D([], [], marker=m, color="black", linestyle="none", label=name) for m, name in (("o", "IQM"), ("s", "mean"))
 ]
 #: The unit of a variance of returns.
 VARIANCE_LABEL = "variance across runs (return²)"
@@ -78,7 +61,7 @@ def display_name(algo: str) -> str:
     """
     The name of an algorithm in figures: :data:`ALGO_DISPLAY_NAMES`, else the id itself.
 
-    :param algo: The algorithm id (``adc``, ``dqn``, ...)
+    :param algo: The algorithm id
     """
     return ALGO_DISPLAY_NAMES.get(str(algo), str(algo))
 
@@ -93,20 +76,6 @@ def algo_colors(algos: list[str]) -> dict[str, tuple[float, float, float, float]
     return {str(algo): cmap(index % 10) for index, algo in enumerate(sorted(algos))}
 
 
-def _shared_limits(low: np.ndarray, high: np.ndarray, margin: float = 0.05) -> tuple[float, float]:
-    """One axis range for every panel of a figure: the span of all intervals, with a margin."""
-    lowest, highest = float(np.nanmin(low)), float(np.nanmax(high))
-    pad = margin * (highest - lowest) if highest > lowest else max(1.0, abs(highest) * margin)
-    return lowest - pad, highest + pad
-
-
-def _grid(n_panels: int) -> tuple[Figure, list[Axes]]:
-    """A figure of ``n_panels`` panels, three to a row."""
-    columns = min(n_panels, 3)
-    figure = Figure(figsize=(PANEL_WIDTH * columns, PANEL_HEIGHT * math.ceil(n_panels / columns)), layout="constrained")
-    return figure, list(figure.subplots(math.ceil(n_panels / columns), columns, squeeze=False).flat)
-
-
 def _save(figure: Figure, path: str, title: str, unused: Sequence[Axes] = ()) -> str:
     """Hide the ``unused`` panels, title the figure and write it to ``path``; return ``path``."""
     for ax in unused:
@@ -114,6 +83,25 @@ def _save(figure: Figure, path: str, title: str, unused: Sequence[Axes] = ()) ->
     figure.suptitle(title, fontsize="medium")
     figure.savefig(path, dpi=120)
     return path
+
+
+def _per_env(table: pd.DataFrame, path: str, title: str, draw: Callable[[Axes, str, pd.DataFrame, dict], None]) -> str:
+    """One panel per environment of ``table``, three to a row, drawn by ``draw(ax, env, its rows, algo_colors)``."""
+    envs = sorted(table["env"].unique())
+    colors = algo_colors(list(table["algo"].unique()))
+    columns = min(len(envs), 3)
+    figure = Figure(figsize=(PANEL_WIDTH * columns, PANEL_HEIGHT * math.ceil(len(envs) / columns)), layout="constrained")
+    axes = list(figure.subplots(math.ceil(len(envs) / columns), columns, squeeze=False).flat)
+    for ax, env in zip(axes, envs, strict=False):
+        draw(ax, env, table[table["env"] == env], colors)
+    return _save(figure, path, title, axes[len(envs) :])
+
+
+def _curve(ax: Axes, table: pd.DataFrame, x: str, y: str, color: Any, label: str, band: bool = True) -> None:
+    """Column ``y`` of ``table`` against column ``x`` and, with ``band``, its CI (``{y}_ci_low`` to ``{y}_ci_high``)."""
+    ax.plot(table[x], table[y], color=color, label=label)
+    if band:
+        ax.fill_between(table[x], table[f"{y}_ci_low"], table[f"{y}_ci_high"], color=color, alpha=0.2)
 
 
 def _decorate(ax: Axes, title: str, xlabel: str, ylabel: str) -> None:
@@ -139,17 +127,14 @@ def _write_table(outputs: PlotOutputs, table: pd.DataFrame, path: str) -> None:
 
 def _plot_mean_curves(curves: pd.DataFrame, path: str, x: str, xlabel: str, ylabel: str, title: str) -> str:
     """One panel per environment: the mean across runs against column ``x``, with its 95% CI, per algorithm."""
-    envs = sorted(curves["env"].unique())
-    colors = algo_colors(list(curves["algo"].unique()))
-    figure, axes = _grid(len(envs))
-    for ax, env in zip(axes, envs, strict=False):
-        for algo, group in curves[curves["env"] == env].groupby("algo", sort=True):
-            color = colors[str(algo)]
-            runs = int(group["n_runs"].iloc[0])
-            ax.plot(group[x], group["mean"], color=color, label=f"{display_name(str(algo))} ({runs} runs)")
-            ax.fill_between(group[x], group["mean_ci_low"], group["mean_ci_high"], color=color, alpha=0.2)
+
+    def draw(ax: Axes, env: str, table: pd.DataFrame, colors: dict) -> None:
+        for algo, group in table.groupby("algo", sort=True):
+            label = f"{display_name(str(algo))} ({int(group['n_runs'].iloc[0])} runs)"
+            _curve(ax, group, x, "mean", colors[str(algo)], label)
         _decorate(ax, env, xlabel, ylabel)
-    return _save(figure, path, title, axes[len(envs) :])
+
+    return _per_env(curves, path, title, draw)
 
 
 def plot_learning_curves(curves: pd.DataFrame, path: str, title: str = "", ylabel: str = "evaluation return") -> str:
@@ -167,22 +152,21 @@ def plot_learning_curves(curves: pd.DataFrame, path: str, title: str = "", ylabe
 
 def plot_wallclock_curves(curves: pd.DataFrame, path: str) -> str:
     """
-    One panel per environment: the learning curves of :func:`plot_learning_curves` against the seconds of
-    training (evaluations included) instead of timesteps, so that a slower algorithm pays for its speed.
+    One panel per environment: the learning curves of :func:`plot_learning_curves` against the seconds of training.
 
     :param curves: The output of :func:`~sb3_adc.experiment.statistics.wallclock_curves`
     :param path: The PNG file
     """
     labels = ("wall-clock time of training (s)", "latest evaluation return")
-    title = "Mean evaluation return against wall-clock time (95% bootstrap CI)"
-    return _plot_mean_curves(curves, path, "wall_time_s", *labels, title)
+    return _plot_mean_curves(
+        curves, path, "wall_time_s", *labels, "Mean evaluation return against wall-clock time (95% bootstrap CI)"
+    )
 
 
 def plot_reward_variance(curves: pd.DataFrame, episodes: pd.DataFrame | None, path: str, window: int = 10) -> str:
     """
-    Across-run variance of the rewards, per environment: of the evaluation returns at each evaluation (with its
-    95% bootstrap CI) and, when training episodes are given, of the training-episode returns at each episode
-    (moving average over ``window`` episodes; the x axis of the paper's Figures 5 and 8).
+    Across-run variance per environment of the evaluation returns (with its 95% bootstrap CI) and, with episodes, of
+    the training-episode returns (moving average over ``window`` episodes; the paper's Figures 5 and 8).
 
     :param curves: The output of :func:`~sb3_adc.experiment.statistics.learning_curves`
     :param episodes: The training episodes (``episodes.csv``), or ``None``
@@ -191,87 +175,75 @@ def plot_reward_variance(curves: pd.DataFrame, episodes: pd.DataFrame | None, pa
     """
     envs = sorted(curves["env"].unique())
     colors = algo_colors(list(curves["algo"].unique()))
-    per_episode = episode_variance(episodes, window) if episodes is not None and not episodes.empty else None
+    per_episode = stats.episode_variance(episodes, window) if episodes is not None and not episodes.empty else None
     rows = 2 if per_episode is not None and not per_episode.empty else 1
     figure = Figure(figsize=(PANEL_WIDTH * len(envs), PANEL_HEIGHT * rows), layout="constrained")
     axes = figure.subplots(rows, len(envs), squeeze=False)
     for column, env in enumerate(envs):
-        ax = axes[0, column]
         for algo, group in curves[curves["env"] == env].groupby("algo", sort=True):
-            if group["variance"].isna().all():
-                continue
-            color = colors[str(algo)]
-            ax.plot(group["timesteps"], group["variance"], color=color, label=display_name(str(algo)))
-            ax.fill_between(group["timesteps"], group["variance_ci_low"], group["variance_ci_high"], color=color, alpha=0.2)
-        _decorate(ax, f"{env}: evaluation returns", "timesteps", VARIANCE_LABEL)
-        if rows == 2:
-            assert per_episode is not None
-            ax = axes[1, column]
+            if not group["variance"].isna().all():
+                _curve(axes[0, column], group, "timesteps", "variance", colors[str(algo)], display_name(str(algo)))
+        _decorate(axes[0, column], f"{env}: evaluation returns", "timesteps", VARIANCE_LABEL)
+        if per_episode is not None and rows == 2:
             for algo, group in per_episode[per_episode["env"] == env].groupby("algo", sort=True):
-                label = display_name(str(algo))
-                ax.plot(group["episode"], group["variance_smoothed"], color=colors.get(str(algo), "k"), label=label)
-            _decorate(ax, f"{env}: training episodes", f"episode ({window}-episode moving average)", VARIANCE_LABEL)
+                color = colors.get(str(algo), "k")
+                _curve(axes[1, column], group, "episode", "variance_smoothed", color, display_name(str(algo)), band=False)
+            xlabel = f"episode ({window}-episode moving average)"
+            _decorate(axes[1, column], f"{env}: training episodes", xlabel, VARIANCE_LABEL)
     return _save(figure, path, "Across-run variance of the rewards (as the ADC paper's Figures 5 and 8)")
 
 
 def plot_final_performance(performance: pd.DataFrame, path: str, quantity: str = "final return") -> str:
     """
-    One panel per environment: IQM and mean of the final returns per algorithm, with 95% CIs, on one x range
-    for all panels (so that panels compare at a glance).
+    One panel per environment: IQM and mean of the final returns per algorithm, with 95% CIs, on one x range.
 
     :param performance: The output of :func:`~sb3_adc.experiment.statistics.final_performance`
     :param path: The PNG file
     :param quantity: What the values are, for the axis labels and the title (e.g. ``"success rate"``)
     """
-    envs = sorted(performance["env"].unique())
-    colors = algo_colors(list(performance["algo"].unique()))
-    limits = _shared_limits(
-        performance[["iqm_ci_low", "mean_ci_low"]].to_numpy(dtype=np.float64),
-        performance[["iqm_ci_high", "mean_ci_high"]].to_numpy(dtype=np.float64),
-    )
-    figure, axes = _grid(len(envs))
-    for ax, env in zip(axes, envs, strict=False):
-        table = performance[performance["env"] == env].sort_values("algo")
+    # One x range for every panel: the span of all intervals, with a margin.
+    lowest = float(np.nanmin(performance[["iqm_ci_low", "mean_ci_low"]].to_numpy(dtype=np.float64)))
+    highest = float(np.nanmax(performance[["iqm_ci_high", "mean_ci_high"]].to_numpy(dtype=np.float64)))
+    pad = 0.05 * (highest - lowest) if highest > lowest else max(1.0, abs(highest) * 0.05)
+
+    def draw(ax: Axes, env: str, table: pd.DataFrame, colors: dict) -> None:
+        table = table.sort_values("algo")
         positions = np.arange(len(table))
         for offset, metric, marker in ((-0.15, "iqm", "o"), (0.15, "mean", "s")):
-            for position, row in zip(positions, table.itertuples(index=False), strict=True):
-                value, low, high = getattr(row, metric), getattr(row, f"{metric}_ci_low"), getattr(row, f"{metric}_ci_high")
-                xerr = [[value - low], [high - value]]
-                ax.errorbar(value, position + offset, xerr=xerr, fmt=marker, color=colors[row.algo], capsize=3)
+            bounds = table[["algo", metric, f"{metric}_ci_low", f"{metric}_ci_high"]].itertuples(index=False)
+            for position, (algo, value, low, high) in zip(positions, bounds, strict=True):
+                ax.errorbar(
+                    value, position + offset, xerr=[[value - low], [high - value]], fmt=marker, color=colors[algo], capsize=3
+                )
         ax.set_yticks(positions, [display_name(algo) for algo in table["algo"]])
-        ax.set(title=env, xlabel=f"{quantity} (95% CI)", xlim=limits)
+        ax.set(title=env, xlabel=f"{quantity} (95% CI)", xlim=(lowest - pad, highest + pad))
         ax.grid(alpha=0.3, axis="x")
         ax.legend(handles=_METRIC_MARKERS, fontsize="small")
-    title = f"{quantity.capitalize()}: IQM (o) and mean (s), 95% stratified-bootstrap CIs"
-    return _save(figure, path, title, axes[len(envs) :])
+
+    return _per_env(performance, path, f"{quantity.capitalize()}: IQM (o) and mean (s), 95% stratified-bootstrap CIs", draw)
 
 
 def plot_performance_profiles(profiles: pd.DataFrame, path: str) -> str:
     """
-    One panel per environment: rliable's performance profile of each algorithm, the fraction of runs whose
-    final return exceeds tau, with its 95% stratified-bootstrap CI band. A profile above another's is better
-    over the whole range of returns, not just on average.
+    One panel per environment: rliable's performance profile of each algorithm, with its 95% CI band.
 
     :param profiles: The output of :func:`~sb3_adc.experiment.statistics.performance_profiles`
     :param path: The PNG file
     """
-    envs = sorted(profiles["env"].unique())
-    colors = algo_colors(list(profiles["algo"].unique()))
-    figure, axes = _grid(len(envs))
-    for ax, env in zip(axes, envs, strict=False):
-        table = profiles[profiles["env"] == env]
-        curves, bands, names = {}, {}, {}
-        for algo, group in table.groupby("algo", sort=True):
-            name = f"{display_name(str(algo))} ({int(group['n_runs'].iloc[0])} runs)"
-            names[name] = colors[str(algo)]
-            curves[name] = group["fraction"].to_numpy()
-            bands[name] = group[["fraction_ci_low", "fraction_ci_high"]].to_numpy().T
+
+    def draw(ax: Axes, env: str, table: pd.DataFrame, colors: dict) -> None:
+        groups = {
+            f"{display_name(str(algo))} ({int(rows['n_runs'].iloc[0])} runs)": (str(algo), rows)
+            for algo, rows in table.groupby("algo", sort=True)
+        }
         plot_utils.plot_performance_profiles(
-            curves,
-            table.groupby("algo", sort=True)["tau"].apply(np.asarray).iloc[0],
-            performance_profile_cis=bands,
+            {name: rows["fraction"].to_numpy() for name, (_, rows) in groups.items()},
+            next(iter(groups.values()))[1]["tau"].to_numpy(),
+            performance_profile_cis={
+                name: rows[["fraction_ci_low", "fraction_ci_high"]].to_numpy().T for name, (_, rows) in groups.items()
+            },
             ax=ax,
-            colors=names,
+            colors={name: colors[algo] for name, (algo, _) in groups.items()},
             xlabel=r"final return $\tau$",
             ylabel=r"fraction of runs with return $> \tau$",
             **_RLIABLE_FONTS,
@@ -279,29 +251,25 @@ def plot_performance_profiles(profiles: pd.DataFrame, path: str) -> str:
             legendsize="small",
         )
         ax.set_title(env)
-    return _save(figure, path, "Performance profiles of the final returns (95% stratified-bootstrap CIs)", axes[len(envs) :])
+
+    return _per_env(profiles, path, "Performance profiles of the final returns (95% stratified-bootstrap CIs)", draw)
 
 
 def plot_probability_of_improvement(improvement: pd.DataFrame, path: str) -> str:
     """
-    rliable's probability-of-improvement figure: for each pair of algorithms, P(X > Y) that a run of X ends
-    with a higher return than a run of Y (averaged over the environments both ran), with its 95% CI. Above 0.5,
-    X tends to do better; a CI that contains 0.5 shows no clear difference.
+    rliable's probability-of-improvement figure: P(X > Y) for each pair of algorithms, with its 95% CI.
 
     :param improvement: The output of :func:`~sb3_adc.experiment.statistics.probability_of_improvement`
     :param path: The PNG file
     """
-    algos = sorted(set(improvement["algo_x"]) | set(improvement["algo_y"]))
-    colors = algo_colors(algos)
-    n_pairs = max(len(improvement), 1)
-    figure = Figure(figsize=(PANEL_WIDTH, 1.6 + 0.5 * n_pairs), layout="constrained")
+    colors = algo_colors(sorted(set(improvement["algo_x"]) | set(improvement["algo_y"])))
+    figure = Figure(figsize=(PANEL_WIDTH, 1.6 + 0.5 * max(len(improvement), 1)), layout="constrained")
     ax = figure.subplots()
     separator = "|"
-    points, intervals = {}, {}
-    for row in improvement.itertuples(index=False):
-        key = f"{display_name(row.algo_x)}{separator}{display_name(row.algo_y)}"
-        points[key] = row.probability
-        intervals[key] = np.array([row.ci_low, row.ci_high])
+    pairs = zip(improvement["algo_x"], improvement["algo_y"], strict=True)
+    keys = [f"{display_name(x)}{separator}{display_name(y)}" for x, y in pairs]
+    points = dict(zip(keys, improvement["probability"], strict=True))
+    intervals = dict(zip(keys, improvement[["ci_low", "ci_high"]].to_numpy(), strict=True))
     plot_utils.plot_probability_of_improvement(
         points,
         intervals,
@@ -319,8 +287,7 @@ def plot_probability_of_improvement(improvement: pd.DataFrame, path: str) -> str
     ax.plot(list(points.values()), range(len(points)), "o", color="black", markersize=4, clip_on=False)
     ax.set_xlim(0.0, 1.0)
     n_envs = sorted(set(improvement["n_envs"]))
-    environments = "environment" if n_envs == [1] else "environments"
-    over = f"over {' or '.join(map(str, n_envs))} {environments}"
+    over = f"over {' or '.join(map(str, n_envs))} environment{'' if n_envs == [1] else 's'}"
     return _save(figure, path, f"Probability of improvement of the final returns, {over} (95% CIs)")
 
 
@@ -334,13 +301,9 @@ def plot_results(
     window: int = 10,
 ) -> PlotOutputs:
     """
-    Write the figures and tables of a benchmark.
-
-    Files: ``learning_curves.png``, ``reward_variance.png``, ``final_performance.png``, ``curves.csv``
-    (mean, IQM and variance across runs at each timestep, with CIs), ``final_performance.csv`` and
-    ``final_performance.md`` (IQM and mean with 95% CIs), ``episode_variance.csv`` when episodes are given, and
-    ``wallclock_curves.png`` and ``.csv`` when they hold their wall-clock times.
-    :func:`plot_comparisons` adds rliable's performance profiles and probability of improvement.
+    Write the figures and tables of a benchmark: ``learning_curves.png``, ``reward_variance.png``,
+    ``final_performance.png``, ``curves.csv``, ``final_performance.csv`` and ``.md``, ``episode_variance.csv`` with
+    episodes, and ``wallclock_curves.png`` and ``.csv`` when the episodes hold their wall-clock times.
 
     :param evaluations: The evaluation curves (``evaluations.csv``)
     :param output_dir: Where to write
@@ -351,22 +314,21 @@ def plot_results(
     :param window: Episodes of the moving average of the per-episode variance
     """
     outputs, out = _prepare(evaluations, output_dir, "no evaluations to plot (is the evaluation CSV empty?).")
-    curves = learning_curves(evaluations, reps=reps, seed=seed)
+    curves = stats.learning_curves(evaluations, reps=reps, seed=seed)
     _write_table(outputs, curves, out("curves.csv"))
-    finals = final if final is not None and not final.empty else last_evaluations(evaluations)
-    performance = final_performance(finals, reps=reps, seed=seed)
+    finals = final if final is not None and not final.empty else stats.last_evaluations(evaluations)
+    performance = stats.final_performance(finals, reps=reps, seed=seed)
     _write_table(outputs, performance, out("final_performance.csv"))
-    with open(out("final_performance.md"), "w", encoding="utf-8") as stream:
-        stream.write(markdown_table(performance))
+    Path(out("final_performance.md")).write_text(stats.markdown_table(performance), encoding="utf-8")
     outputs.tables.append(out("final_performance.md"))
     if episodes is not None and not episodes.empty:
-        _write_table(outputs, episode_variance(episodes, window), out("episode_variance.csv"))
+        _write_table(outputs, stats.episode_variance(episodes, window), out("episode_variance.csv"))
     outputs.figures.append(plot_learning_curves(curves, out("learning_curves.png")))
     outputs.figures.append(plot_reward_variance(curves, episodes, out("reward_variance.png"), window))
     outputs.figures.append(plot_final_performance(performance, out("final_performance.png")))
-    if has_wall_times(episodes):
+    if stats.has_wall_times(episodes):
         assert episodes is not None
-        timed = wallclock_curves(evaluations, episodes, reps=reps, seed=seed)
+        timed = stats.wallclock_curves(evaluations, episodes, reps=reps, seed=seed)
         if not timed.empty:
             _write_table(outputs, timed, out("wallclock_curves.csv"))
             outputs.figures.append(plot_wallclock_curves(timed, out("wallclock_curves.png")))
@@ -375,21 +337,19 @@ def plot_results(
 
 def plot_comparisons(final: pd.DataFrame, output_dir: str, reps: int = 2000, seed: int = 0) -> PlotOutputs:
     """
-    Write rliable's comparisons of the final returns: ``performance_profiles.png`` and ``.csv`` (the fraction of
-    runs above each return, per environment) and, with two algorithms or more, ``probability_of_improvement.png``
-    and ``.csv`` (P(X > Y) for each pair), all with 95% stratified-bootstrap CIs.
+    Write rliable's comparisons of the final returns: ``performance_profiles.png`` and ``.csv`` and, with two
+    algorithms or more, ``probability_of_improvement.png`` and ``.csv``.
 
-    :param final: One row per run, with columns ``env``, ``algo``, ``seed`` and ``mean_return`` (``final.csv``,
-        or :func:`~sb3_adc.experiment.statistics.last_evaluations` of the evaluation curves)
+    :param final: One row per run, with columns ``env``, ``algo``, ``seed`` and ``mean_return`` (``final.csv``)
     :param output_dir: Where to write
     :param reps: Bootstrap replications
     :param seed: Seed of the bootstrap
     """
     outputs, out = _prepare(final, output_dir, "no final returns to compare (is the final CSV empty?).")
-    profiles = performance_profiles(final, reps=reps, seed=seed)
+    profiles = stats.performance_profiles(final, reps=reps, seed=seed)
     _write_table(outputs, profiles, out("performance_profiles.csv"))
     outputs.figures.append(plot_performance_profiles(profiles, out("performance_profiles.png")))
-    improvement = probability_of_improvement(final, reps=reps, seed=seed)
+    improvement = stats.probability_of_improvement(final, reps=reps, seed=seed)
     if not improvement.empty:
         _write_table(outputs, improvement, out("probability_of_improvement.csv"))
         outputs.figures.append(plot_probability_of_improvement(improvement, out("probability_of_improvement.png")))

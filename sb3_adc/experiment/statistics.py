@@ -1,18 +1,13 @@
 """
-Statistics of benchmark results with rliable (Agarwal et al., 2021): interquartile mean (IQM) and mean with
-95% stratified-bootstrap confidence intervals, per environment and algorithm, across-run variance curves,
-performance profiles (the fraction of runs above each return) and the probability of improvement
-P(X > Y) between algorithms.
-
-Needs the ``experiment`` extra (rliable, SciPy, pandas).
+Statistics of benchmark results with rliable (Agarwal et al., 2021), with 95% stratified-bootstrap confidence
+intervals. Needs the ``experiment`` extra (rliable, SciPy, pandas).
 """
 
 from __future__ import annotations
 
 import itertools
 import warnings
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -41,22 +36,6 @@ PERFORMANCE_PROFILE_COLUMNS = ("env", "algo", "n_runs", "tau", "fraction", "frac
 IMPROVEMENT_COLUMNS = ("algo_x", "algo_y", "n_envs", "probability", "ci_low", "ci_high")
 
 
-@contextmanager
-def _seeded_bootstrap(seed: int) -> Iterator[None]:
-    """Reproducible rliable bootstraps that leave NumPy's global generator as they found it."""
-    # rliable 1.2 draws its resamples from NumPy's global generator (`random_state` only seeds arch's own):
-    # seed it for reproducible intervals, and give it back its state afterwards.
-    global_state = np.random.get_state()  # noqa: NPY002
-    np.random.seed(seed)  # noqa: NPY002
-    try:
-        with warnings.catch_warnings():
-            # rliable passes `random_state` to arch, which deprecates it.
-            warnings.filterwarnings("ignore", category=FutureWarning, module="arch")
-            yield
-    finally:
-        np.random.set_state(global_state)  # noqa: NPY002
-
-
 def interval_estimates(
     data: dict[str, Any], func: Callable[..., Any], reps: int, seed: int
 ) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -69,10 +48,19 @@ def interval_estimates(
     :param seed: Seed of the bootstrap
     :return: Name -> point estimate, and name -> interval (rows: low, high)
     """
-    with _seeded_bootstrap(seed):
-        return rly.get_interval_estimates(
-            data, func, reps=reps, confidence_interval_size=CONFIDENCE, random_state=np.random.RandomState(seed)
-        )
+    # rliable 1.2 draws its resamples from NumPy's global generator (`random_state` only seeds arch's own):
+    # seed it for reproducible intervals, and give it back its state afterwards.
+    global_state = np.random.get_state()  # noqa: NPY002
+    np.random.seed(seed)  # noqa: NPY002
+    try:
+        with warnings.catch_warnings():
+            # rliable passes `random_state` to arch, which deprecates it.
+            warnings.filterwarnings("ignore", category=FutureWarning, module="arch")
+            return rly.get_interval_estimates(
+                data, func, reps=reps, confidence_interval_size=CONFIDENCE, random_state=np.random.RandomState(seed)
+            )
+    finally:
+        np.random.set_state(global_state)  # noqa: NPY002
 
 
 def iqm_and_mean(scores: np.ndarray) -> np.ndarray:
@@ -83,8 +71,7 @@ def iqm_and_mean(scores: np.ndarray) -> np.ndarray:
 def _bootstrap(
     scores: np.ndarray | tuple[np.ndarray, ...], func: Callable[..., np.ndarray], reps: int, seed: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Point estimates and 95% stratified-bootstrap intervals (rows: low, high) of ``func(*scores)``; none (the
-    point twice) for fewer than two runs. ``scores``: a ``(runs, ...)`` matrix, or a tuple of them."""
+    """Point and interval (rows: low, high) of ``func(*scores)``, the point twice for fewer than two runs."""
     matrices = scores if isinstance(scores, tuple) else (scores,)
     if min(matrix.shape[0] for matrix in matrices) < 2:
         point = np.asarray(func(*matrices))
@@ -98,26 +85,30 @@ def _at_least_two(value: int, name: str) -> None:
         raise ValueError(f"{name} must be >= 2, got {value}")
 
 
-def _concat(frames: list[pd.DataFrame], columns: tuple[str, ...]) -> pd.DataFrame:
-    """The frames one below the other, in ``columns`` (without frames: an empty table of them)."""
+def _per_algo(table: pd.DataFrame, columns: tuple[str, ...], make: Callable[[pd.DataFrame], Any]) -> pd.DataFrame:
+    """The columns ``make`` gives for the rows of each (env, algo) (``None``: none), one below the other."""
+    groups = table.groupby(["env", "algo"], sort=True)
+    frames = [pd.DataFrame({"env": env, "algo": algo, **made}) for (env, algo), rows in groups if (made := make(rows))]
     return pd.concat(frames, ignore_index=True)[list(columns)] if frames else pd.DataFrame(columns=list(columns))
+
+
+def _scores(table: pd.DataFrame) -> np.ndarray:
+    return table["mean_return"].to_numpy(dtype=np.float64).reshape(-1, 1)
 
 
 def final_performance(final: pd.DataFrame, reps: int = 2000, seed: int = 0) -> pd.DataFrame:
     """
     IQM and mean of the final returns of each algorithm on each environment, with 95% stratified-bootstrap CIs.
 
-    :param final: One row per run, with columns ``env``, ``algo`` and ``mean_return``
-        (the ``final.csv`` of a benchmark, or the last evaluation of each run)
+    :param final: One row per run, with columns ``env``, ``algo`` and ``mean_return`` (``final.csv``)
     :param reps: Bootstrap replications
     :param seed: Seed of the bootstrap
     :return: One row per (env, algo), columns :data:`FINAL_PERFORMANCE_COLUMNS`
     """
     rows = []
     for (env, algo), group in final.groupby(["env", "algo"], sort=True):
-        scores = group["mean_return"].to_numpy(dtype=np.float64).reshape(-1, 1)
-        point, interval = _bootstrap(scores, iqm_and_mean, reps, seed)
-        rows.append([env, algo, scores.shape[0], point[0], *interval[:, 0], point[1], *interval[:, 1]])
+        point, interval = _bootstrap(_scores(group), iqm_and_mean, reps, seed)
+        rows.append([env, algo, len(group), point[0], *interval[:, 0], point[1], *interval[:, 1]])
     return pd.DataFrame(rows, columns=list(FINAL_PERFORMANCE_COLUMNS))
 
 
@@ -163,23 +154,20 @@ def _curve_columns(matrix: np.ndarray, reps: int, seed: int) -> dict[str, Any]:
 
 def learning_curves(evaluations: pd.DataFrame, reps: int = 2000, seed: int = 0) -> pd.DataFrame:
     """
-    Across runs, at each evaluation timestep: the mean return with its 95% stratified-bootstrap CI, the IQM,
-    and the variance of the returns (the paper's Figures 5 and 8) with its CI.
-
-    Only the timesteps evaluated in every run of an (env, algo) are kept.
+    Across runs, at each evaluation timestep evaluated in every run of an (env, algo): the mean return with its
+    95% stratified-bootstrap CI, the IQM, and the variance of the returns (the paper's Figures 5 and 8) with its CI.
 
     :param evaluations: The evaluation curves (``evaluations.csv``)
     :param reps: Bootstrap replications
     :param seed: Seed of the bootstrap
     :return: One row per (env, algo, timesteps), columns :data:`CURVE_COLUMNS`
     """
-    frames = []
-    for (env, algo), group in evaluations.groupby(["env", "algo"], sort=True):
+
+    def curve(group: pd.DataFrame) -> dict[str, Any] | None:
         steps, matrix = run_matrix(group, "timesteps", "mean_return")
-        if matrix.size:
-            columns = _curve_columns(matrix, reps, seed)
-            frames.append(pd.DataFrame({"env": env, "algo": algo, "timesteps": steps.astype(np.int64), **columns}))
-    return _concat(frames, CURVE_COLUMNS)
+        return {"timesteps": steps.astype(np.int64), **_curve_columns(matrix, reps, seed)} if matrix.size else None
+
+    return _per_algo(evaluations, CURVE_COLUMNS, curve)
 
 
 def has_wall_times(episodes: pd.DataFrame | None) -> bool:
@@ -189,25 +177,21 @@ def has_wall_times(episodes: pd.DataFrame | None) -> bool:
 
 def evaluation_times(evaluations: pd.DataFrame, episodes: pd.DataFrame) -> pd.DataFrame:
     """
-    The evaluations with the seconds their run had trained when each was made (column ``wall_time_s``),
-    interpolated between the ends of the training episodes around it (``episodes.csv``'s ``timesteps`` and
-    ``wall_time_s``). Runs without episode times are left out.
+    The evaluations with the seconds their run had trained then (``wall_time_s``), interpolated between the ends
+    of the training episodes around them. Runs without episode times are left out.
 
     :param evaluations: The evaluation curves (``evaluations.csv``)
     :param episodes: The training episodes (``episodes.csv``, with ``wall_time_s``)
     """
+    timed = dict(list(episodes.dropna(subset=["wall_time_s"]).groupby(["env", "algo", "seed"])))
     frames = []
-    for (env, algo, seed), group in evaluations.groupby(["env", "algo", "seed"], sort=True):
-        run = episodes[(episodes["env"] == env) & (episodes["algo"] == algo) & (episodes["seed"] == seed)]
-        run = run.dropna(subset=["wall_time_s"]).sort_values("timesteps", kind="stable")
-        if run.empty:
-            continue
-        # The run's clock starts at zero steps: evaluations before the first episode's end are interpolated from it.
-        steps = np.concatenate([[0.0], run["timesteps"].to_numpy(np.float64)])
-        seconds = np.concatenate([[0.0], run["wall_time_s"].to_numpy(np.float64)])
-        timed = group.copy()
-        timed["wall_time_s"] = np.interp(group["timesteps"].to_numpy(np.float64), steps, seconds)
-        frames.append(timed)
+    for key, group in evaluations.groupby(["env", "algo", "seed"], sort=True):
+        if key in timed:
+            run = timed[key].sort_values("timesteps", kind="stable")
+            # The run's clock starts at zero steps: evaluations before the first episode's end are interpolated from it.
+            steps = np.concatenate([[0.0], run["timesteps"].to_numpy(np.float64)])
+            seconds = np.concatenate([[0.0], run["wall_time_s"].to_numpy(np.float64)])
+            frames.append(group.assign(wall_time_s=np.interp(group["timesteps"].to_numpy(np.float64), steps, seconds)))
     return pd.concat(frames, ignore_index=True) if frames else evaluations.iloc[:0].assign(wall_time_s=[])
 
 
@@ -215,11 +199,8 @@ def wallclock_curves(
     evaluations: pd.DataFrame, episodes: pd.DataFrame, n_points: int = 50, reps: int = 2000, seed: int = 0
 ) -> pd.DataFrame:
     """
-    Learning curves against wall-clock time: across the runs of each (env, algo), at ``n_points`` times, the
-    mean of the latest evaluation return each run had reached by then (what it would return if stopped there),
-    with its 95% stratified-bootstrap CI, and the IQM. The times span from the latest first evaluation to the
-    earliest last evaluation of the runs, so every run counts at every point; a slower algorithm's curve ends
-    earlier on the time axis only if its runs finish earlier.
+    Learning curves against wall-clock time: across the runs of each (env, algo), the mean (with CI) and IQM of
+    the latest evaluation return of each run at ``n_points`` times, between the times every run has evaluated.
 
     :param evaluations: The evaluation curves (``evaluations.csv``)
     :param episodes: The training episodes (``episodes.csv``, with ``wall_time_s``)
@@ -229,75 +210,76 @@ def wallclock_curves(
     :return: One row per (env, algo, time), columns :data:`WALLCLOCK_CURVE_COLUMNS`
     """
     _at_least_two(n_points, "n_points")
-    timed = evaluation_times(evaluations, episodes)
-    frames = []
-    for (env, algo), group in timed.groupby(["env", "algo"], sort=True):
+
+    def curve(group: pd.DataFrame) -> dict[str, Any] | None:
         runs = [run.sort_values("wall_time_s") for _, run in group.groupby("seed", sort=True)]
         start = max(float(run["wall_time_s"].iloc[0]) for run in runs)
         stop = min(float(run["wall_time_s"].iloc[-1]) for run in runs)
         if stop <= start:
-            continue
+            return None
         times = np.linspace(start, stop, n_points)
         latest = [np.searchsorted(run["wall_time_s"].to_numpy(np.float64), times, side="right") - 1 for run in runs]
         matrix = np.stack([run["mean_return"].to_numpy(np.float64)[index] for run, index in zip(runs, latest, strict=True)])
-        frames.append(pd.DataFrame({"env": env, "algo": algo, "wall_time_s": times, **_curve_columns(matrix, reps, seed)}))
-    return _concat(frames, WALLCLOCK_CURVE_COLUMNS)
+        return {"wall_time_s": times, **_curve_columns(matrix, reps, seed)}
+
+    return _per_algo(evaluation_times(evaluations, episodes), WALLCLOCK_CURVE_COLUMNS, curve)
 
 
 def time_to_threshold(evaluations: pd.DataFrame, episodes: pd.DataFrame, threshold: float) -> pd.DataFrame:
     """
-    When each run's evaluation return first stays at or above ``threshold`` until the end of the run (the ADC
-    paper's "converges at around the 120th episode"): the timestep of that evaluation and the number of training
-    episodes finished by then. A run whose last evaluation is below the threshold has not reached it (``NaN``).
+    When each run's evaluation return first stays at or above ``threshold`` until its end: the timestep of that
+    evaluation and the training episodes finished by then (``NaN`` where the last evaluation is below it).
 
     :param evaluations: The evaluation curves (``evaluations.csv``)
     :param episodes: The training episodes (``episodes.csv``), to count episodes
     :param threshold: The evaluation return to stay above
-    :return: One row per run: ``env``, ``algo``, ``seed``, ``reached``, ``timesteps``, ``episodes``,
-        ``budget_timesteps`` and ``budget_episodes`` (the run's last evaluation and the episodes finished by then)
+    :return: One row per run: ``env``, ``algo``, ``seed``, ``reached``, ``timesteps``, ``episodes``, and the
+        ``budget_timesteps`` and ``budget_episodes`` of its last evaluation
     """
     columns = ("env", "algo", "seed", "reached", "timesteps", "episodes", "budget_timesteps", "budget_episodes")
+    ends = {key: run["timesteps"].to_numpy(np.int64) for key, run in episodes.groupby(["env", "algo", "seed"])}
     rows = []
     for (env, algo, seed), run in evaluations.groupby(["env", "algo", "seed"], sort=True):
         run = run.sort_values("timesteps")
         steps = run["timesteps"].to_numpy(np.int64)
         below = np.flatnonzero(run["mean_return"].to_numpy(np.float64) < threshold)
         first = 0 if below.size == 0 else int(below[-1]) + 1
-        ends = episodes.loc[
-            (episodes["env"] == env) & (episodes["algo"] == algo) & (episodes["seed"] == seed), "timesteps"
-        ].to_numpy(np.int64)
+        run_ends = ends.get((env, algo, seed), np.empty(0, np.int64))
         reached = first < len(steps)
-        reached_at = (int(steps[first]), int((ends <= steps[first]).sum())) if reached else (np.nan, np.nan)
-        rows.append([env, algo, seed, reached, *reached_at, int(steps[-1]), int((ends <= steps[-1]).sum())])
+        reached_at = (int(steps[first]), int((run_ends <= steps[first]).sum())) if reached else (np.nan, np.nan)
+        rows.append([env, algo, seed, reached, *reached_at, int(steps[-1]), int((run_ends <= steps[-1]).sum())])
     return pd.DataFrame(rows, columns=list(columns))
 
 
 def episode_variance(episodes: pd.DataFrame, window: int = 10) -> pd.DataFrame:
     """
-    Across-run variance of the training-episode returns at each episode index (the x axis of the paper's
-    Figures 5 and 8), and its moving average over ``window`` episodes.
+    Across-run variance of the training-episode returns at each episode index, and its moving average.
 
     :param episodes: The training episodes (``episodes.csv``)
     :param window: Episodes of the moving average
     :return: Columns ``env``, ``algo``, ``episode``, ``n_runs``, ``variance``, ``variance_smoothed``
     """
-    frames = []
-    for (env, algo), group in episodes.groupby(["env", "algo"], sort=True):
+
+    def variance(group: pd.DataFrame) -> dict[str, Any] | None:
         index, matrix = run_matrix(group, "episode", "return")
         if matrix.shape[0] < 2 or matrix.shape[1] == 0:
-            continue
+            return None
         variance = matrix.var(axis=0, ddof=1)
         smoothed = pd.Series(variance).rolling(window, min_periods=1).mean().to_numpy()
-        columns = {"episode": index.astype(np.int64), "n_runs": matrix.shape[0], "variance": variance}
-        frames.append(pd.DataFrame({"env": env, "algo": algo, **columns, "variance_smoothed": smoothed}))
-    return _concat(frames, ("env", "algo", "episode", "n_runs", "variance", "variance_smoothed"))
+        return {
+            "episode": index.astype(np.int64),
+            "n_runs": matrix.shape[0],
+            "variance": variance,
+            "variance_smoothed": smoothed,
+        }
+
+    return _per_algo(episodes, ("env", "algo", "episode", "n_runs", "variance", "variance_smoothed"), variance)
 
 
 def performance_profiles(final: pd.DataFrame, n_taus: int = 101, reps: int = 2000, seed: int = 0) -> pd.DataFrame:
     """
-    Performance profiles (rliable's score distributions): for each environment and algorithm, the fraction of
-    runs whose final return exceeds each threshold tau, with 95% stratified-bootstrap CIs. The thresholds span
-    the final returns of every algorithm on that environment, so the profiles of an environment share one axis.
+    Performance profiles (rliable's score distributions): per environment and algorithm, the fraction of runs
+    whose final return exceeds each tau, with CIs; the taus span the final returns of the environment.
 
     :param final: One row per run, with columns ``env``, ``algo`` and ``mean_return``
     :param n_taus: Thresholds per environment (at least 2)
@@ -306,59 +288,41 @@ def performance_profiles(final: pd.DataFrame, n_taus: int = 101, reps: int = 200
     :return: One row per (env, algo, tau), columns :data:`PERFORMANCE_PROFILE_COLUMNS`
     """
     _at_least_two(n_taus, "n_taus")
-    frames = []
-    for env, table in final.groupby("env", sort=True):
-        returns = table["mean_return"].to_numpy(dtype=np.float64)
-        taus = np.linspace(returns.min(), returns.max(), n_taus)
-        # Just below the lowest return, so that every profile starts at 1.
-        taus[0] -= max(1e-6, 1e-6 * abs(taus[0]))
-        for algo, group in table.groupby("algo", sort=True):
-            scores = group["mean_return"].to_numpy(dtype=np.float64).reshape(-1, 1)
-            if scores.shape[0] < 2:
-                fraction = (scores > taus).mean(axis=0)
-                low, high = fraction, fraction
-            else:
-                with _seeded_bootstrap(seed):
-                    profiles, cis = rly.create_performance_profile(
-                        {"scores": scores}, taus, reps=reps, confidence_interval_size=CONFIDENCE
-                    )
-                fraction, (low, high) = np.asarray(profiles["scores"]), np.asarray(cis["scores"])
-            profile = {"fraction": fraction, "fraction_ci_low": low, "fraction_ci_high": high}
-            frames.append(pd.DataFrame({"env": env, "algo": algo, "n_runs": scores.shape[0], "tau": taus, **profile}))
-    return _concat(frames, PERFORMANCE_PROFILE_COLUMNS)
+    taus = {env: np.linspace(returns.min(), returns.max(), n_taus) for env, returns in final.groupby("env")["mean_return"]}
+    for env_taus in taus.values():
+        env_taus[0] -= max(1e-6, 1e-6 * abs(env_taus[0]))  # just below the lowest return: every profile starts at 1
+
+    def profile(group: pd.DataFrame) -> dict[str, Any]:
+        env_taus = taus[group["env"].iloc[0]]
+        # rliable's create_performance_profile, with its profile function: the fraction of runs above each tau.
+        fraction, (low, high) = _bootstrap(_scores(group), lambda s: rly.score_distributions(s, env_taus), reps, seed)
+        return {"n_runs": len(group), "tau": env_taus, "fraction": fraction, "fraction_ci_low": low, "fraction_ci_high": high}
+
+    return _per_algo(final, PERFORMANCE_PROFILE_COLUMNS, profile)
 
 
 def probability_of_improvement(final: pd.DataFrame, reps: int = 2000, seed: int = 0) -> pd.DataFrame:
     """
-    Probability of improvement (rliable): for each ordered pair of algorithms (X, Y), the probability that a run
-    of X ends with a higher return than a run of Y (ties count one half), averaged over the environments both
-    ran, with a 95% stratified-bootstrap CI (runs of X and Y resampled independently within each environment).
-    Being a rank statistic, it needs no normalisation of the returns across environments. Each unordered pair
-    appears once (P(Y > X) = 1 - P(X > Y)), with ``adc`` as X where it is in the pair.
+    Probability of improvement (rliable): for each pair of algorithms, P(X > Y) that a run of X ends above a run
+    of Y (ties count one half), averaged over the environments both ran, with CI. Each pair appears once, with
+    ``adc`` as X where it is in the pair.
 
     :param final: One row per run, with columns ``env``, ``algo``, ``seed`` and ``mean_return``
     :param reps: Bootstrap replications
     :param seed: Seed of the bootstrap
     :return: One row per pair, columns :data:`IMPROVEMENT_COLUMNS`
     """
-    rows = []
-    algos = sorted(final["algo"].unique(), key=lambda algo: (algo != "adc", algo))
     final = final.sort_values("seed", kind="stable") if "seed" in final.columns else final
-    for algo_x, algo_y in itertools.combinations(algos, 2):
-        scores = []
-        for _, table in final.groupby("env", sort=True):
-            x = table.loc[table["algo"] == algo_x, "mean_return"].to_numpy(dtype=np.float64)
-            y = table.loc[table["algo"] == algo_y, "mean_return"].to_numpy(dtype=np.float64)
-            if len(x) and len(y):
-                scores.append((x, y))
-        if not scores:
-            continue
-        # rliable wants (runs, tasks) matrices: as many runs in every environment, so the shortest count is kept.
-        n_x, n_y = min(len(x) for x, _ in scores), min(len(y) for _, y in scores)
-        matrix_x = np.stack([x[:n_x] for x, _ in scores], axis=1)
-        matrix_y = np.stack([y[:n_y] for _, y in scores], axis=1)
-        point, interval = _bootstrap((matrix_x, matrix_y), metrics.probability_of_improvement, reps, seed)
-        rows.append([algo_x, algo_y, len(scores), float(point), *(float(bound) for bound in interval.ravel())])
+    envs = [dict(list(table.groupby("algo")["mean_return"])) for _, table in final.groupby("env", sort=True)]
+    rows = []
+    for pair in itertools.combinations(sorted(final["algo"].unique(), key=lambda algo: (algo != "adc", algo)), 2):
+        scores = [[runs[algo].to_numpy(dtype=np.float64) for algo in pair] for runs in envs if set(pair) <= runs.keys()]
+        if scores:
+            # rliable wants (runs, tasks) matrices: as many runs in every environment, so the shortest count is kept.
+            counts = np.min([[len(runs) for runs in env] for env in scores], axis=0)
+            x, y = (np.stack([env[i][:count] for env in scores], axis=1) for i, count in enumerate(counts))
+            point, interval = _bootstrap((x, y), metrics.probability_of_improvement, reps, seed)
+            rows.append([*pair, len(scores), float(point), *(float(bound) for bound in interval.ravel())])
     return pd.DataFrame(rows, columns=list(IMPROVEMENT_COLUMNS))
 
 

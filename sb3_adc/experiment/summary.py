@@ -1,12 +1,6 @@
 """
-The report of an experiment (:mod:`sb3_adc.experiment.experiments`): its merged tables, and its summary, one row
-per environment and configuration:
-the final-return IQM and mean with 95% stratified-bootstrap CIs (rliable), the across-seed standard deviation,
-the area under the evaluation curve with its IQM and CI, the probability that the experiment's reference
-configuration improves on each other one (with CI), and the median wall-clock time of a run. Also, for a return
-threshold, the runs that reach it and how soon they stay there (:func:`~sb3_adc.experiment.statistics.time_to_threshold`).
-
-Needs the ``experiment`` extra (rliable, pandas).
+The report of an experiment (:mod:`sb3_adc.experiment.experiments`): its merged tables, its summary per environment
+and configuration, the time to a return threshold, and its critic diagnostics (``experiment`` extra).
 """
 
 from __future__ import annotations
@@ -15,6 +9,8 @@ import json
 import os
 import shutil
 from collections.abc import Mapping
+from functools import partial
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -36,8 +32,7 @@ with requires_extra("experiment", "the experiment summaries"):
     import pandas as pd
     from rliable import metrics
 
-#: Columns of the formatted summary (``summary.md`` and ``summary_table.csv``) but the last, which names the
-#: reference: see :func:`display_columns`.
+#: Columns of the formatted summary but the last, which names the reference (see :func:`display_columns`).
 _DISPLAY_COLUMNS = ["env", "configuration", "runs", "final IQM [95% CI]", "final mean", "across-seed std", "AUC IQM [95% CI]"]
 
 
@@ -47,14 +42,19 @@ def _area(curve: pd.DataFrame) -> float:
     return float(np.trapezoid(y, x) / (x[-1] - x[0])) if len(x) > 1 else np.nan
 
 
+def _iqm_and_mean(prefix: str, point: np.ndarray, interval: np.ndarray) -> dict[str, Any]:
+    """The columns of :func:`~sb3_adc.experiment.statistics.iqm_and_mean`'s estimates: IQM with CI, and mean."""
+    iqm = f"{prefix}_iqm"
+    return {iqm: point[0], f"{iqm}_ci_low": interval[0, 0], f"{iqm}_ci_high": interval[1, 0], f"{prefix}_mean": point[1]}
+
+
 def summary(
     final: pd.DataFrame, evaluations: pd.DataFrame, reps: int, reference: str | None, episodes: pd.DataFrame | None = None
 ) -> pd.DataFrame:
     """
-    Per environment and configuration (the ``algo`` column of the tables): final-return IQM and mean with CIs,
-    across-seed std, area under the evaluation curve with its IQM and CI, the probability that ``reference``
-    improves on the configuration (final return, with CI: ``p_improvement_of_adc`` and its bounds, the name the
-    committed tables use), and, when the episodes carry their wall-clock time, the median seconds a run trained.
+    Per environment and configuration (``algo``): final-return IQM and mean with CIs, across-seed std, area under
+    the evaluation curve with IQM and CI, P(``reference`` > configuration) with CI (``p_improvement_of_adc``, as
+    the committed tables name it), and, with episode wall-clock times, the median seconds a run trained.
 
     :param final: The final evaluations (``final.csv``)
     :param evaluations: The evaluation curves (``evaluations.csv``)
@@ -62,6 +62,7 @@ def summary(
     :param reference: The configuration whose improvement on the others is measured (``None``: none)
     :param episodes: The training episodes (``episodes.csv``), for the run times
     """
+    run_areas = {run: _area(curve.sort_values("timesteps")) for run, curve in evaluations.groupby(["env", "algo", "seed"])}
     rows = []
     for env, env_final in final.groupby("env", sort=True):
         scores: dict[str, np.ndarray] = {}
@@ -69,34 +70,25 @@ def summary(
         for name, group in env_final.groupby("algo", sort=False):
             ordered = group.sort_values("seed")
             scores[str(name)] = ordered["mean_return"].to_numpy(np.float64).reshape(-1, 1)
-            curves = evaluations[(evaluations["env"] == env) & (evaluations["algo"] == name)]
-            per_run = [_area(curves[curves["seed"] == seed].sort_values("timesteps")) for seed in ordered["seed"]]
-            areas[str(name)] = np.asarray(per_run).reshape(-1, 1)
+            per_run = [run_areas.get((env, name, seed), np.nan) for seed in ordered["seed"]]
+            areas[str(name)] = np.asarray(per_run, dtype=np.float64).reshape(-1, 1)
         final_points, final_intervals = interval_estimates(scores, iqm_and_mean, reps, 0)
         area_points, area_intervals = interval_estimates(areas, iqm_and_mean, reps, 1)
-        improvement: tuple[dict[str, Any], dict[str, Any]] = ({}, {})
-        if reference is not None and reference in scores:
-            pairs = {
-                name: (scores[reference], other)
-                for name, other in scores.items()
-                if name != reference and other.shape == scores[reference].shape
-            }
-            if pairs:
-                improvement = interval_estimates(pairs, metrics.probability_of_improvement, reps, 2)
+        base = scores.get(reference) if reference is not None else None
+        pairs = {
+            name: (base, other)
+            for name, other in scores.items()
+            if name != reference and base is not None and other.shape == base.shape
+        }
+        improvement = interval_estimates(pairs, metrics.probability_of_improvement, reps, 2) if pairs else ({}, {})
         for name in scores:
             row: dict[str, Any] = {
                 "env": env,
                 "config": name,
                 "n_runs": scores[name].shape[0],
-                "final_iqm": final_points[name][0],
-                "final_iqm_ci_low": final_intervals[name][0, 0],
-                "final_iqm_ci_high": final_intervals[name][1, 0],
-                "final_mean": final_points[name][1],
+                **_iqm_and_mean("final", final_points[name], final_intervals[name]),
                 "final_std": float(scores[name].std(ddof=1)) if scores[name].shape[0] > 1 else np.nan,
-                "auc_iqm": area_points[name][0],
-                "auc_iqm_ci_low": area_intervals[name][0, 0],
-                "auc_iqm_ci_high": area_intervals[name][1, 0],
-                "auc_mean": area_points[name][1],
+                **_iqm_and_mean("auc", area_points[name], area_intervals[name]),
             }
             if episodes is not None and "wall_time_s" in episodes.columns:
                 runs = episodes[(episodes["env"] == env) & (episodes["algo"] == name)]
@@ -111,7 +103,7 @@ def summary(
 
 def display_columns(reference: str | None) -> list[str]:
     """
-    Columns of the formatted summary (``summary.md`` and ``summary_table.csv``, which the docs include).
+    Columns of the formatted summary (``summary.md`` and ``summary_table.csv``).
 
     :param reference: The reference configuration
     """
@@ -130,18 +122,10 @@ def display_table(table: pd.DataFrame, reference: str | None) -> pd.DataFrame:
         improvement = "—"
         if not pd.isna(getattr(row, "p_improvement_of_adc", np.nan)):
             improvement = f"{row.p_improvement_of_adc:.2f} [{row.p_improvement_ci_low:.2f}, {row.p_improvement_ci_high:.2f}]"
-        rows.append(
-            [
-                row.env,
-                row.config,
-                str(row.n_runs),
-                f"{row.final_iqm:.1f} [{row.final_iqm_ci_low:.1f}, {row.final_iqm_ci_high:.1f}]",
-                f"{row.final_mean:.1f}",
-                f"{row.final_std:.1f}",
-                f"{row.auc_iqm:.1f} [{row.auc_iqm_ci_low:.1f}, {row.auc_iqm_ci_high:.1f}]",
-                improvement,
-            ]
-        )
+        final_iqm = f"{row.final_iqm:.1f} [{row.final_iqm_ci_low:.1f}, {row.final_iqm_ci_high:.1f}]"
+        auc_iqm = f"{row.auc_iqm:.1f} [{row.auc_iqm_ci_low:.1f}, {row.auc_iqm_ci_high:.1f}]"
+        spread = [f"{row.final_mean:.1f}", f"{row.final_std:.1f}"]
+        rows.append([row.env, row.config, str(row.n_runs), final_iqm, *spread, auc_iqm, improvement])
     return pd.DataFrame(rows, columns=display_columns(reference))
 
 
@@ -161,7 +145,7 @@ def markdown(table: pd.DataFrame, reference: str | None) -> str:
 def threshold_markdown(converged: pd.DataFrame, threshold: float) -> str:
     """
     Per configuration: runs that stay above ``threshold`` by the end, and the median episodes until they do (a run
-    that never does counts as beyond its budget, so the median is a lower bound when it is one of them).
+    that never does counts as beyond its budget).
 
     :param converged: The output of :func:`~sb3_adc.experiment.statistics.time_to_threshold`
     :param threshold: The return
@@ -171,65 +155,51 @@ def threshold_markdown(converged: pd.DataFrame, threshold: float) -> str:
         "|---|---|---:|---:|",
     ]
     for (env, name), group in converged.groupby(["env", "algo"], sort=False):
-        n_episodes = group["episodes"].fillna(np.inf).to_numpy(np.float64)
-        median = float(np.median(n_episodes))
-        budget = int(group["budget_episodes"].max())
-        shown = f"> {budget}" if np.isinf(median) else f"{median:.0f}"
+        median = float(np.median(group["episodes"].fillna(np.inf).to_numpy(np.float64)))
+        shown = f"> {int(group['budget_episodes'].max())}" if np.isinf(median) else f"{median:.0f}"
         lines.append(f"| {env} | {name} | {int(group['reached'].sum())} of {len(group)} | {shown} |")
     return "\n".join(lines) + "\n"
 
 
 def merge_tables(tables: Mapping[str, Mapping[str, str]], output: str) -> None:
     """
-    Merge the tables of an experiment's grids into ``output``: one table of every configuration, with the
-    configuration's name in the ``algo`` column.
+    Merge the tables of an experiment's grids into ``output``, with the configuration's name in ``algo``.
 
     :param tables: Configuration name -> its grid's table name -> path
     :param output: The experiment's results folder
     """
     os.makedirs(output, exist_ok=True)
     for table in (FINAL_CSV, EVALUATIONS_CSV, EPISODES_CSV):
-        frames = []
-        for name, paths in tables.items():
-            frame = read_table(paths[table])
-            frame["algo"] = name
-            frames.append(frame)
+        frames = [read_table(paths[table]).assign(algo=name) for name, paths in tables.items()]
         pd.concat(frames, ignore_index=True).to_csv(os.path.join(output, table), index=False)
 
 
 def write_report(experiment: Experiment, output: str, figures: str | None = None, wall_time_s: float | None = None) -> None:
     """
-    Write an experiment's statistics and figures from its merged tables in ``output`` (``final.csv``,
-    ``evaluations.csv``, ``episodes.csv``): ``summary.csv``, ``summary.md`` and ``summary_table.csv``
-    (:mod:`~sb3_adc.experiment.summary`), ``time_to_threshold.{csv,md}`` with a threshold, the figures and
-    tables of :func:`~sb3_adc.experiment.plots.plot_results` (labelled with the configurations' labels), and
-    ``metadata.json`` (the settings, the versions and the machine); with test sets, ``test_summary.{csv,md}``
-    (:func:`~sb3_adc.experiment.test_sets.write_summary`; only that where the training curves were not kept). No
-    training: ``sb3-adc experiment FILE --report`` redraws the committed results this way (and leaves
-    ``metadata.json``, which describes the training, as it is).
+    Write an experiment's statistics and figures from its merged tables in ``output``: ``summary.csv``, ``.md``
+    and ``summary_table.csv``, ``time_to_threshold.{csv,md}`` with a threshold, the figures and tables of
+    :func:`~sb3_adc.experiment.plots.plot_results` (by the configurations' labels), ``metadata.json`` after training,
+    and with test sets ``test_summary.{csv,md}`` (only that where the training curves were not kept).
 
     :param experiment: The experiment
     :param output: Its results folder
     :param figures: Where to move the figures, as ``{name}_{figure}.png`` (``None``: none is kept)
-    :param wall_time_s: Seconds this invocation trained, added to the recorded ones (``None``: no training,
-        ``metadata.json`` is left as it is)
+    :param wall_time_s: Seconds this invocation trained (``None``: no training, ``metadata.json`` is left as it is)
     """
     write_test_summary(output, experiment.references(), experiment.bootstrap_reps)
-    if not os.path.isfile(os.path.join(output, EVALUATIONS_CSV)):  # results kept without their training curves
+    out = partial(os.path.join, output)
+    if not os.path.isfile(out(EVALUATIONS_CSV)):  # results kept without their training curves
         return
-    final, evaluations = read_table(os.path.join(output, FINAL_CSV)), read_table(os.path.join(output, EVALUATIONS_CSV))
-    episodes = read_table(os.path.join(output, EPISODES_CSV))
+    final, evaluations, episodes = (read_table(out(name)) for name in (FINAL_CSV, EVALUATIONS_CSV, EPISODES_CSV))
     reps = experiment.bootstrap_reps
     table = summary(final, evaluations, reps, experiment.reference, episodes)
-    table.to_csv(os.path.join(output, "summary.csv"), index=False)
-    with open(os.path.join(output, "summary.md"), "w", encoding="utf-8") as stream:
-        stream.write(markdown(table, experiment.reference))
-    display_table(table, experiment.reference).to_csv(os.path.join(output, "summary_table.csv"), index=False)
+    table.to_csv(out("summary.csv"), index=False)
+    Path(out("summary.md")).write_text(markdown(table, experiment.reference), encoding="utf-8")
+    display_table(table, experiment.reference).to_csv(out("summary_table.csv"), index=False)
     if experiment.threshold is not None:
         converged = time_to_threshold(evaluations, episodes, experiment.threshold)
-        converged.to_csv(os.path.join(output, "time_to_threshold.csv"), index=False)
-        with open(os.path.join(output, "time_to_threshold.md"), "w", encoding="utf-8") as stream:
-            stream.write(threshold_markdown(converged, experiment.threshold))
+        converged.to_csv(out("time_to_threshold.csv"), index=False)
+        Path(out("time_to_threshold.md")).write_text(threshold_markdown(converged, experiment.threshold), encoding="utf-8")
     labels = {name: config.label for name, config in experiment.configs.items() if config.label}
     # The figures name the configurations by their labels; the tables keep the configurations' names.
     relabel = {"algo": labels}
@@ -256,8 +226,7 @@ DIAGNOSTICS_CI_KEYS = ("eval/critic_bias", "eval/critic_bias_abs", "train/advant
 
 def diagnostics_summary(last_records: pd.DataFrame, reps: int) -> pd.DataFrame:
     """
-    IQM and mean of each of :data:`DIAGNOSTICS_CI_KEYS` per configuration, with 95% stratified-bootstrap CIs over
-    runs (:func:`~sb3_adc.experiment.statistics.final_performance`).
+    IQM and mean of each of :data:`DIAGNOSTICS_CI_KEYS` per configuration, with CIs over runs.
 
     :param last_records: One row per run: ``config``, ``seed`` and the last value of each diagnostic
     :param reps: Bootstrap replications
@@ -273,10 +242,8 @@ def diagnostics_summary(last_records: pd.DataFrame, reps: int) -> pd.DataFrame:
 
 def write_diagnostics(experiment: Experiment, runs: str, output: str, figures: str | None) -> None:
     """
-    Collect the critic diagnostics that an experiment's runs logged (its ``diagnostics`` key) into ``output``:
-    each run's history as ``diagnostics/{config}_seed{seed}.csv``, the last record of each run as
-    ``diagnostics_last_records.csv``, :func:`diagnostics_summary` as ``diagnostics_summary.csv``, and the figure of
-    :func:`~sb3_adc.diagnostics.plot_diagnostics` as ``{figures}/{name}_diagnostics.png``.
+    Collect the critic diagnostics of an experiment's runs into ``output``: ``diagnostics/{config}_seed{seed}.csv``,
+    ``diagnostics_last_records.csv``, ``diagnostics_summary.csv`` and the figure ``{figures}/{name}_diagnostics.png``.
 
     :param experiment: The experiment
     :param runs: Folder of its runs
@@ -321,8 +288,7 @@ def read_metadata(path: str) -> dict[str, Any]:
 
 def write_metadata(path: str, metadata: Mapping[str, Any]) -> None:
     """
-    Write a results folder's ``metadata.json`` atomically: it accumulates what no table can give again (the wall time
-    of every invocation), so an interrupted write must leave the previous file.
+    Write a results folder's ``metadata.json`` atomically (it accumulates the wall time of every invocation).
 
     :param path: The file
     :param metadata: Its content
