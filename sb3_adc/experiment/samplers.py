@@ -1,17 +1,10 @@
 """
 Optuna search spaces of the algorithms that ``sb3-adc train -optimize`` tunes.
 
-Each sampler draws hyperparameters from an Optuna trial and returns them as overrides of the algorithm's entry
-(the same ``key: value`` pairs as ``-params``), so a trial runs through the same engine, validation and log
-layout as any other run. The spaces follow the RL Zoo's ``rl_zoo3/hyperparams_opt.py`` for the keys the
-algorithms share. :func:`register_zoo_samplers` also adds them to the Zoo's ``HYPERPARAMS_SAMPLER`` (for the names
-the Zoo lacks), so that the Zoo's own ``objective`` searches ADC's space: the values drawn are validated as an entry
-and returned as constructor keywords. ``sb3-adc train -optimize`` keeps its own objective, because a trial there
-trains several seeds through our engine where the Zoo's trains one.
-
-ADC and DDPG are searched over the same shared keys, including the critic-to-actor learning-rate ratio and the
-epsilon-gated exploration schedule; ADC also over its own knobs: the critic design, the number of intervals
-and, for the Legendre critic, the degree of the basis. TD3 and SAC get the shared keys their constructors take.
+A sampler draws hyperparameters from an Optuna trial and returns them as overrides of the algorithm's entry (the
+``key: value`` pairs of ``-params``), so a trial runs through the same engine, validation and log layout as any run.
+The keys the algorithms share follow the RL Zoo's ``rl_zoo3/hyperparams_opt.py``. :func:`register_zoo_samplers`
+adds the spaces the Zoo lacks to its ``HYPERPARAMS_SAMPLER``, so that the Zoo's own ``objective`` searches them.
 """
 
 from __future__ import annotations
@@ -60,9 +53,8 @@ class Space:
     :param trial: The Optuna trial
     :param entry: The entry the trial starts from (the shipped one, with the fixed overrides)
     :param fixed: Keys fixed by ``-params``: never searched, so that a trial's parameters are what it ran
-    :param listed: Choices given for keys (``--search-space``): such a key is drawn from its choices, whether the
-        algorithm's space searches it (its own range is then replaced) or not (it is added to the search); the
-        values drawn are :attr:`drawn`
+    :param listed: Choices given for keys (``--search-space``): such a key is drawn from its choices (replacing the
+        algorithm's range, or added to the search); the values drawn are :attr:`drawn`
     """
 
     def __init__(
@@ -75,8 +67,7 @@ class Space:
         self.trial = trial
         self.fixed = frozenset(fixed)
         self.listed = dict(listed or {})
-        #: The listed keys' values, drawn first so that the algorithm's space sees them in :attr:`entry` (the
-        #: exploration schedule is searched only where the noise drawn is epsilon-gated, say).
+        #: The listed keys' values, drawn first so that the algorithm's space sees them in :attr:`entry`.
         self.drawn: dict[str, Any] = {}
         for key, choices in self.listed.items():
             if all(choice is None or isinstance(choice, (bool, int, float, str)) for choice in choices):
@@ -112,108 +103,70 @@ class Space:
         return params.get(key, self.entry.get(key, default))
 
 
-def _shared_off_policy(space: Space) -> dict[str, Any]:
-    """:data:`SHARED_OFF_POLICY`, and the network where the entry's ``policy_kwargs`` set nothing else."""
-    params = space.draw({}, SHARED_OFF_POLICY)
-    if _only_net_arch(space.entry.get("policy_kwargs")) and space.searches("policy_kwargs"):
-        params["policy_kwargs"] = {"net_arch": NET_ARCHS[space.trial.suggest_categorical("net_arch", list(NET_ARCHS))]}
-    return params
-
-
-def _only_net_arch(policy_kwargs: Any) -> bool:
-    """Whether an entry's ``policy_kwargs`` set nothing but ``net_arch`` (replacing them then loses nothing)."""
-    if policy_kwargs is None:
-        return True
-    if isinstance(policy_kwargs, Mapping):
-        return set(policy_kwargs) <= {"net_arch"}
+def _net_arch(space: Space, params: dict[str, Any]) -> None:
+    """The network, where the entry's ``policy_kwargs`` set nothing but ``net_arch`` (replacing them loses nothing)."""
+    policy_kwargs = space.entry.get("policy_kwargs")
     text = str(policy_kwargs).replace(" ", "")
-    return text.startswith("dict(net_arch=") and text.count("=") == 1
+    only_net_arch = policy_kwargs is None or (
+        set(policy_kwargs) <= {"net_arch"}
+        if isinstance(policy_kwargs, Mapping)
+        else text.startswith("dict(net_arch=") and text.count("=") == 1
+    )
+    if only_net_arch and space.searches("policy_kwargs"):
+        params["policy_kwargs"] = {"net_arch": NET_ARCHS[space.trial.suggest_categorical("net_arch", list(NET_ARCHS))]}
 
 
-def _exploration(space: Space, params: dict[str, Any]) -> dict[str, Any]:
-    """:data:`EXPLORATION`, and :data:`EPSILON_SCHEDULE` where the noise is epsilon-gated."""
-    space.draw(params, EXPLORATION)
-    if space.current(params, "noise_type") == "epsilon-normal":
-        space.draw(params, EPSILON_SCHEDULE)
-    return params
-
-
-def _critic_rate(space: Space, params: dict[str, Any]) -> dict[str, Any]:
+def _critic_rate(space: Space, params: dict[str, Any]) -> None:
     """The critic's learning rate as a multiple of the actor's (the paper uses twice the actor's)."""
     if space.searches("critic_learning_rate"):
         ratio = space.trial.suggest_categorical("critic_rate_ratio", [1.0, 2.0, 5.0])
         params["critic_learning_rate"] = float(space.current(params, "learning_rate", 1e-3)) * ratio
-    return params
 
 
-def sample_ddpg(space: Space) -> dict[str, Any]:
-    """
-    DDPG (with a critic learning rate of its own): the shared keys, the critic-rate ratio and the exploration.
-
-    :param space: The trial's search space
-    """
-    return _exploration(space, _critic_rate(space, _shared_off_policy(space)))
-
-
-def sample_adc(space: Space) -> dict[str, Any]:
-    """
-    ADC: DDPG's space, plus the critic design, the number of intervals and the Legendre basis degree.
-
-    :param space: The trial's search space
-    """
-    params = space.draw(sample_ddpg(space), {"critic_design": ["legendre", "state_value", "paper"]})
-    space.draw(params, {"n_intervals": [20, 50, 100, 200]})
-    if space.current(params, "critic_design", "legendre") == "legendre":
-        space.draw(params, {"basis_degree": [2, 4, 6]})
-    return params
-
-
-def sample_td3(space: Space) -> dict[str, Any]:
-    """
-    TD3: the shared keys and the exploration noise (its twin critics, delay and smoothing stay SB3's).
-
-    :param space: The trial's search space
-    """
-    return _exploration(space, _shared_off_policy(space))
+#: A step of a space: ranges drawn, a function drawing into the values, or ``(ranges, key, value, default)``:
+#: ranges drawn where ``key`` (drawn so far, else the entry's, else ``default``) is ``value``.
+Step = Ranges | Callable[[Space, dict[str, Any]], None] | tuple[Ranges, str, Any, Any]
+EPSILON_GATED: Step = (EPSILON_SCHEDULE, "noise_type", "epsilon-normal", None)
+DDPG: tuple[Step, ...] = (SHARED_OFF_POLICY, _net_arch, _critic_rate, EXPLORATION, EPSILON_GATED)
+#: ``--algo`` name -> the steps of its search space, in the order they are drawn: DDPG (with a critic learning rate
+#: of its own); ADC, DDPG's plus its critic design, intervals and Legendre basis degree; TD3 (its twin critics,
+#: delay and smoothing stay SB3's); SAC with its entropy coefficient; the vanilla actor-critic (no replay, no target
+#: networks); the dueling DQN.
+SPACES: dict[str, tuple[Step, ...]] = {
+    "adc": (
+        *DDPG,
+        {"critic_design": ["legendre", "state_value", "paper"], "n_intervals": [20, 50, 100, 200]},
+        ({"basis_degree": [2, 4, 6]}, "critic_design", "legendre", "legendre"),
+    ),
+    "ddpg": DDPG,
+    "td3": (SHARED_OFF_POLICY, _net_arch, EXPLORATION, EPSILON_GATED),
+    "sac": (SHARED_OFF_POLICY, _net_arch, {"ent_coef": ["auto", 0.1, 0.01]}),
+    "vanilla_ac": ({"gamma": GAMMAS, "learning_rate": ("log", 1e-5, 3e-3)}, _critic_rate, EXPLORATION, EPSILON_GATED),
+    "dqn": (DQN,),
+}
 
 
-def sample_sac(space: Space) -> dict[str, Any]:
-    """
-    SAC: the shared keys and the entropy coefficient (learned, or fixed).
+def _sampler(steps: tuple[Step, ...]) -> Sampler:
+    """The sampler that draws ``steps`` in order."""
 
-    :param space: The trial's search space
-    """
-    return space.draw(_shared_off_policy(space), {"ent_coef": ["auto", 0.1, 0.01]})
+    def sample_space(space: Space) -> dict[str, Any]:
+        params: dict[str, Any] = {}
+        for step in steps:
+            if callable(step):
+                step(space, params)
+            elif isinstance(step, tuple):
+                ranges, key, value, default = step
+                if space.current(params, key, default) == value:
+                    space.draw(params, ranges)
+            else:
+                space.draw(params, step)
+        return params
 
-
-def sample_vanilla_ac(space: Space) -> dict[str, Any]:
-    """
-    The vanilla actor-critic (no replay, no target networks): discount, rates and exploration.
-
-    :param space: The trial's search space
-    """
-    params = space.draw({}, {"gamma": GAMMAS, "learning_rate": ("log", 1e-5, 3e-3)})
-    return _exploration(space, _critic_rate(space, params))
-
-
-def sample_dqn(space: Space) -> dict[str, Any]:
-    """
-    The dueling DQN (:data:`DQN`).
-
-    :param space: The trial's search space
-    """
-    return space.draw({}, DQN)
+    return sample_space
 
 
 #: ``--algo`` name -> its search space.
-SAMPLERS: dict[str, Sampler] = {
-    "adc": sample_adc,
-    "ddpg": sample_ddpg,
-    "td3": sample_td3,
-    "sac": sample_sac,
-    "vanilla_ac": sample_vanilla_ac,
-    "dqn": sample_dqn,
-}
+SAMPLERS: dict[str, Sampler] = {algo: _sampler(steps) for algo, steps in SPACES.items()}
 
 
 def sample(algo: str, space: Space) -> dict[str, Any]:
@@ -229,8 +182,8 @@ def sample(algo: str, space: Space) -> dict[str, Any]:
 def zoo_sampler(algo: str) -> Callable[[optuna.Trial, int, int, dict[str, Any]], dict[str, Any]]:
     """
     The space of ``algo`` with the signature of the Zoo's samplers (``trial, n_actions, n_envs, additional_args``):
-    the values drawn go through the same validation as a hyperparameter entry, and come back as the constructor
-    keywords the Zoo's ``objective`` passes to the algorithm (``action_noise`` built for ``n_actions``).
+    the values drawn are validated as an entry and come back as the constructor keywords the Zoo's ``objective``
+    passes to the algorithm (``action_noise`` built for ``n_actions``).
 
     :param algo: The algorithm (a key of :data:`SAMPLERS`)
     """

@@ -1,32 +1,18 @@
 """
 Hyperparameter tuning with Optuna (``sb3-adc train -optimize``), on the same engine as every other run.
 
-The RL Zoo's ``hyperparameters_optimization``: a trial draws hyperparameters from the algorithm's search space
-(:mod:`~sb3_adc.experiment.samplers`), periodic evaluations are reported to the pruner (the Zoo's
-``TrialEvalCallback``), and its value is the final evaluation's mean return (``objective="return"``) or success
-rate (``"success"``: the share of episodes ending with ``info["is_success"]``). Differences, each for a reason:
-
-- The first trial is the algorithm's shipped entry: a tuned entry is at least as good on the tuning seeds.
-- A trial trains several seeds (:func:`~sb3_adc.experiment.training.train`), so one lucky seed does not win, and
-  can evaluate on other environment keywords (``eval_env_kwargs``: a validation split of layouts, say).
-- ``search_space`` (``--search-space FILE``) gives choices per key, added to or replacing the algorithm's space.
-- ``--n-jobs`` runs worker processes (threads share one interpreter lock) on one study, kept in a journal file by
-  default. An interrupted trial (worker killed, Ctrl-C) is re-queued with its hyperparameters (Optuna's
-  ``RetryHeartbeatStaleTrialCallback``) and keeps its runs: finished seeds are not trained again, an unfinished one
-  resumes from its latest checkpoint. The budget is exactly ``n_trials`` finished trials whatever the number of
-  workers: equal budgets make a comparison of tuned algorithms fair.
+The RL Zoo's ``hyperparameters_optimization``, with the Zoo's pruners and ``TrialEvalCallback``: a trial's value is
+the final evaluation's mean return (``objective="return"``) or success rate (``"success"``). Differences, each for a
+reason: the first trial is the shipped entry (a tuned entry is at least as good on the tuning seeds); a trial trains
+several seeds and can evaluate on other environment keywords (``eval_env_kwargs``); ``search_space`` adds or replaces
+choices per key; an interrupted trial is re-queued with its hyperparameters (Optuna's
+``RetryHeartbeatStaleTrialCallback``) and keeps its runs; and the budget is exactly ``n_trials`` finished trials
+whatever the number of ``--n-jobs`` worker processes, so that tuned algorithms are compared fairly.
 
 Files, under ``{log_folder}/tuning/{study_name}/``: ``study.log`` (the Optuna journal), ``trial_N/hyperparams.yml``
-and ``trial_N/seed_S/`` (run folders; a continuation uses its trial's folder), ``trials.csv`` and
-``best_hyperparams.yml`` (usable with ``-conf``), and ``.lock``: a study kept in a journal file is tuned by one
-command at a time, which holds the study folder's lock (:class:`~sb3_adc.experiment.layout.FolderLock`) for its life
-(its ``--n-jobs`` workers work under it), and a second command on the same folder fails at once with
-:class:`~sb3_adc.experiment.layout.RunLocked`. A study in a database (``--storage`` URL) is shared on purpose by
-commands on several machines or in one folder: no lock then. Two log folders can share one journal file too (each its
-own study folder).
-
-The parts: the settings and their checks (:mod:`~sb3_adc.experiment.tuning_settings`), the storage
-(:mod:`~sb3_adc.experiment.tuning_storage`) and one trial (:mod:`~sb3_adc.experiment.tuning_trials`).
+and ``trial_N/seed_S/`` (run folders), ``trials.csv``, ``best_hyperparams.yml`` (usable with ``-conf``) and ``.lock``:
+a study in a journal file is tuned by one command at a time (:class:`~sb3_adc.experiment.layout.FolderLock`); a study
+in a database (``--storage`` URL) is shared on purpose by several commands, without a lock.
 """
 
 from __future__ import annotations
@@ -100,40 +86,33 @@ def tune(settings: TuneSettings) -> TuneResult:
         check_success_reported(settings, config.wrap_env(gym.make(settings.env_id, **evaluation_kwargs)))
     check_storage(settings.storage_url())
     with study_lock(settings):
-        return _tune_locked(settings, base)
-
-
-def _tune_locked(settings: TuneSettings, base: dict[str, Any]) -> TuneResult:
-    """:func:`tune` from the journal's repair on, under :func:`~sb3_adc.experiment.tuning_storage.study_lock`."""
-    if "://" not in settings.storage_url():
-        repair_journal(settings.storage_url())
-    study = open_study(settings, worker=0)  # a database it cannot open stops here, before the study's folder is made
-    os.makedirs(settings.study_dir, exist_ok=True)
-    fail_dead_trials(study)
-    continue_interrupted(study)
-    if not any(trial.user_attrs.get(SHIPPED) and trial.state != TrialState.FAIL for trial in study.trials):
-        study.enqueue_trial({}, user_attrs={SHIPPED: True})
-    remaining = settings.n_trials - len(_finished(study)) - len(study.get_trials(False, (TrialState.RUNNING,)))
-    start = time.perf_counter()
-    print(
-        f"Tuning {settings.algo} on {settings.env_id}: study {settings.name} in {settings.study_dir}, "
-        f"{len(_finished(study))} of {settings.n_trials} trials finished, seeds {list(settings.seeds)}, "
-        f"{settings.n_jobs} worker(s)"
-    )
-    if remaining > 0:
-        context = multiprocessing.get_context("spawn")
+        if "://" not in settings.storage_url():
+            repair_journal(settings.storage_url())
+        study = open_study(settings, worker=0)  # a database it cannot open stops here, before the study's folder is made
+        os.makedirs(settings.study_dir, exist_ok=True)
+        fail_dead_trials(study)
+        continue_interrupted(study)
+        if not any(trial.user_attrs.get(SHIPPED) and trial.state != TrialState.FAIL for trial in study.trials):
+            study.enqueue_trial({}, user_attrs={SHIPPED: True})
+        remaining = settings.n_trials - len(_finished(study)) - len(study.get_trials(False, (TrialState.RUNNING,)))
+        start = time.perf_counter()
+        print(
+            f"Tuning {settings.algo} on {settings.env_id}: study {settings.name} in {settings.study_dir}, "
+            f"{len(_finished(study))} of {settings.n_trials} trials finished, seeds {list(settings.seeds)}, "
+            f"{settings.n_jobs} worker(s)"
+        )
         # The trials still to run, taken one at a time by whichever worker is free. Optuna's MaxTrialsCallback (the
-        # Zoo's budget) counts the study's trials after each one ends, and two workers ending at once can both
-        # start one more: it overshoots by up to n_jobs - 1 trials. A shared count, taken under a lock, is exact.
+        # Zoo's budget) counts the study's trials after each one ends, and two workers ending at once can both start
+        # one more: it overshoots by up to n_jobs - 1 trials. A shared count, taken under a lock, is exact.
+        context = multiprocessing.get_context("spawn")
         tickets = context.Value("i", remaining)
-        n_workers = min(settings.n_jobs, remaining)
-        if n_workers == 1:
+        workers = [
+            context.Process(target=_work, args=(settings, base, k, tickets), name=f"tuning-worker-{k}")
+            for k in range(min(settings.n_jobs, remaining))
+        ]
+        if len(workers) == 1:
             _work(settings, base, 0, tickets)
         else:
-            workers = [
-                context.Process(target=_work, args=(settings, base, k, tickets), name=f"tuning-worker-{k}")
-                for k in range(n_workers)
-            ]
             for worker in workers:
                 worker.start()
             for worker in workers:
@@ -141,9 +120,9 @@ def _tune_locked(settings: TuneSettings, base: dict[str, Any]) -> TuneResult:
             failed = [worker.name for worker in workers if worker.exitcode != 0]
             if failed:
                 raise RuntimeError(f"{', '.join(failed)} stopped with an error; run the same command again to continue")
-    result = _report(settings, open_study(settings, worker=0))
-    print(f"Tuning took {time.perf_counter() - start:.0f} s")
-    return result
+        result = _report(settings, open_study(settings, worker=0))
+        print(f"Tuning took {time.perf_counter() - start:.0f} s")
+        return result
 
 
 def _work(settings: TuneSettings, base: dict[str, Any], worker: int, tickets: Synchronized[int]) -> None:
@@ -204,15 +183,16 @@ def _report(settings: TuneSettings, study: optuna.Study) -> TuneResult:
     best_file = os.path.join(settings.study_dir, "best_hyperparams.yml")
     origin = "the shipped entry" if best.user_attrs.get(SHIPPED) else f"trial {best.number}"
     quantity = "mean final return" if settings.objective == "return" else "mean final success rate"
+    n_finished = len(_finished(study))
     write_entry(
         best_file,
         settings.env_id,
         read_yaml_file(str(best.user_attrs["hyperparams"]))[settings.env_id],
-        f"Best of {len(_finished(study))} trials of study {settings.name} ({origin}): {quantity} "
+        f"Best of {n_finished} trials of study {settings.name} ({origin}): {quantity} "
         f"{best.value:.2f} over seeds {list(settings.seeds)}, {settings.n_timesteps or 'entry'} timesteps",
     )
     print(f"Best: {origin}, {quantity} {best.value:.2f}; hyperparameters in {best_file} (use with -conf)")
-    return TuneResult(settings.study_dir, float(cast(float, best.value)), dict(best.params), best_file, len(_finished(study)))
+    return TuneResult(settings.study_dir, float(cast(float, best.value)), dict(best.params), best_file, n_finished)
 
 
 __all__ = ["TuneResult", "TuneSettings", "tune"]

@@ -20,9 +20,8 @@ configuration (:func:`~sb3_adc.experiment.tuning.tune`, ``sb3-adc train -optimiz
 
 A configuration's ``search_space`` (choices per key) is searched beside its algorithm's own space, and its
 ``overrides`` are fixed like ``fixed``. The studies go to ``{runs}/tuning/{config}-{env}/`` (re-running the file
-resumes them; ``--workers`` is each study's number of worker processes); the results folder gets each study's
-``{config}/trials.csv``, the winners as ``hyperparams/{config}.yml`` (a ``-conf`` folder when the configurations are
-named after their algorithms), ``summary.md`` and ``metadata.json``.
+resumes them; ``--workers``: each study's worker processes); the results folder gets each ``{config}/trials.csv``,
+the winners as ``hyperparams/{config}.yml``, ``summary.md`` and ``metadata.json``.
 """
 
 from __future__ import annotations
@@ -47,10 +46,6 @@ from sb3_adc.experiment.tuning_settings import TuneSettings, check_search_space
 if TYPE_CHECKING:
     from sb3_adc.experiment.experiments import Experiment
 
-#: Keys of ``tuning:``, with their defaults (``trials`` has none).
-DEFAULTS: dict[str, Any] = {"objective": "return", "sampler": "tpe", "pruner": "median", "sampler_seed": 0}
-DEFAULTS |= {"n_startup_trials": 3, "n_evaluations": 5, "fixed": {}, "eval_env_kwargs": {}}
-TUNING_KEYS = ("trials", *DEFAULTS)
 #: The key of the file behind each option that :class:`~sb3_adc.experiment.tuning_settings.TuneSettings` refuses.
 OPTION_KEYS = {"--n-trials": "tuning.trials", "--n-startup-trials": "tuning.n_startup_trials"}
 OPTION_KEYS |= {"--n-evaluations": "tuning.n_evaluations", "--sampler": "tuning.sampler", "--pruner": "tuning.pruner"}
@@ -63,7 +58,7 @@ TINY_TRIALS = 2
 @dataclass(frozen=True)
 class Tuning:
     """
-    The ``tuning:`` key of an experiment file (see the module's docstring).
+    The ``tuning:`` key of an experiment file (see the module's docstring), with its defaults.
 
     :param trials: Finished trials per study
     :param objective: ``return`` or ``success``
@@ -78,21 +73,25 @@ class Tuning:
     """
 
     trials: int
-    objective: str
-    sampler: str
-    pruner: str
-    sampler_seed: int
-    n_startup_trials: int
-    n_evaluations: int
+    objective: str = "return"
+    sampler: str = "tpe"
+    pruner: str = "median"
+    sampler_seed: int = 0
+    n_startup_trials: int = 3
+    n_evaluations: int = 5
     fixed: dict[str, Any] = field(default_factory=dict)
     eval_env_kwargs: dict[str, Any] = field(default_factory=dict)
     search_spaces: dict[str, dict[str, list[Any]]] = field(default_factory=dict)
 
 
+#: Keys of ``tuning:``.
+TUNING_KEYS = tuple(key.name for key in dataclasses.fields(Tuning) if key.name != "search_spaces")
+
+
 def read_tuning(data: Mapping[str, Any], experiment: Experiment) -> Tuning | None:
     """
-    The ``tuning:`` key of a file (``None`` without one), each value checked where it is defined: by
-    :class:`~sb3_adc.experiment.tuning_settings.TuneSettings` for every configuration's study.
+    The ``tuning:`` key of a file (``None`` without one), its values checked by each configuration's
+    :class:`~sb3_adc.experiment.tuning_settings.TuneSettings`.
 
     :param data: The file's mapping
     :param experiment: The file's other keys, read and checked
@@ -112,7 +111,7 @@ def read_tuning(data: Mapping[str, Any], experiment: Experiment) -> Tuning | Non
         _require(isinstance(value.get(key, {}), Mapping), path, f"tuning.{key}", "must be a mapping")
     _require(is_int(value.get("sampler_seed", 0), 0, 2**31), path, "tuning.sampler_seed", "must be an integer >= 0")
     _require(len(experiment.envs) == 1, path, "envs", "must name exactly one env in a tuning file")
-    tuning = Tuning(**{**DEFAULTS, **value}, search_spaces={name: space or {} for name, space in spaces.items()})
+    tuning = Tuning(**value, search_spaces={name: space or {} for name, space in spaces.items()})
     for name in experiment.configs:
         try:
             study_settings(dataclasses.replace(experiment, tuning=tuning), name)
@@ -140,23 +139,19 @@ def study_settings(
 
     tuning, config, env_id = experiment.tuning, experiment.configs[name], experiment.envs[0]
     assert tuning is not None, f"{experiment.path} has no tuning"
+    same = ("sampler", "pruner", "n_startup_trials", "n_evaluations", "objective", "sampler_seed")
     return TuneSettings(
+        **{key: getattr(tuning, key) for key in same},
         algo=config.algo,
         env_id=env_id,
         conf_file=None if config.hyperparams is None else os.path.join(config.hyperparams, f"{config.algo}.yml"),
         n_trials=TINY_TRIALS if tiny else tuning.trials,
         n_timesteps=TINY_TIMESTEPS if tiny else experiment.n_timesteps,
         seeds=tuple(experiment.seeds[:1] if tiny else experiment.seeds),
-        sampler=tuning.sampler,
-        pruner=tuning.pruner,
-        n_startup_trials=tuning.n_startup_trials,
-        n_evaluations=tuning.n_evaluations,
         eval_episodes=1 if tiny else experiment.eval_episodes,
         final_eval_episodes=1 if tiny else experiment.final_eval_episodes,
-        objective=tuning.objective,
         n_jobs=workers,
         study_name=f"{name}-{env_name(env_id)}",
-        sampler_seed=tuning.sampler_seed,
         overrides={**tuning.fixed, **config.overrides},
         eval_env_kwargs=dict(tuning.eval_env_kwargs),
         search_space=dict(tuning.search_spaces[name]),
@@ -215,8 +210,7 @@ def finished(trials: list[dict[str, str]]) -> list[dict[str, str]]:
 def summarise(experiment: Experiment, output: str, seeds: list[int]) -> tuple[list[str], dict[str, float]]:
     """
     Write ``summary.md`` for every configuration with a ``trials.csv`` in ``output``; return its lines and, per
-    configuration, the summed duration of its finished trials in seconds (the study's compute, whatever the
-    invocations and interruptions).
+    configuration, the summed duration of its finished trials in seconds (its compute, whatever the interruptions).
 
     :param experiment: The file (with ``tuning:``)
     :param output: Its results folder
@@ -247,14 +241,12 @@ def summarise(experiment: Experiment, output: str, seeds: list[int]) -> tuple[li
 
 def run_tuning(experiment: Experiment, workers: int | None = None, tiny: bool = False) -> list[str]:
     """
-    Run (or resume) the study of every configuration of a tuning file, one after the other, and write its results:
-    each study's ``trials.csv``, the winners, ``summary.md`` and ``metadata.json`` (after every study, so that a long
-    invocation stopped later keeps what it finished).
+    Run (or resume) the study of every configuration of a tuning file, one after the other, writing the results
+    (``trials.csv``, the winners, ``summary.md``, ``metadata.json``) after every study.
 
     :param experiment: The file (with ``tuning:``)
     :param workers: Worker processes of each study (``None``: one)
-    :param tiny: :data:`TINY_TRIALS` trials of a few hundred steps per study in a temporary folder: a check that the
-        file runs, not a result
+    :param tiny: :data:`TINY_TRIALS` short trials per study in a temporary folder: a check that the file runs
     :return: The lines of the summary
     :raises HyperparamsError: for an entry or choice the loader refuses, before any study trains
     :raises RunLocked: if another invocation is working on the results folder or one of the studies

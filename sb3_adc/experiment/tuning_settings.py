@@ -15,17 +15,13 @@ from sb3_adc.experiment.evaluation import success_unreported
 from sb3_adc.experiment.layout import env_name
 from sb3_adc.experiment.samplers import SAMPLERS
 
-#: ``--sampler`` choices.
+#: ``--sampler``, ``--pruner`` and ``--objective`` choices (a trial's value: the final evaluations' mean of what).
 SAMPLER_NAMES = ("tpe", "random")
-#: ``--pruner`` choices.
 PRUNER_NAMES = ("median", "halving", "none")
-#: ``--objective`` choices: what a trial's value is the mean of (the final evaluation's return or success rate).
 OBJECTIVE_NAMES = ("return", "success")
 #: Bounds of a search space (``--search-space``): keys, and choices per key.
-MAX_SEARCH_KEYS = 32
-MAX_CHOICES = 32
-#: Workers (``--n-jobs``) per CPU at most: a worker trains on one thread and holds its own process (a few hundred
-#: MB); more workers than that only share the CPUs.
+MAX_SEARCH_KEYS = MAX_CHOICES = 32
+#: Workers (``--n-jobs``) per CPU at most: a worker trains on one thread in its own process (a few hundred MB).
 MAX_JOBS_PER_CPU = 2
 #: A refused command-line option: ``refused(option, reason)``.
 refused = functools.partial(HyperparamsError, "command line")
@@ -43,21 +39,20 @@ class TuneSettings:
     :param seeds: Seeds each trial trains on (tune on seeds that the final comparison does not use)
     :param sampler: ``tpe`` (Optuna's default) or ``random``
     :param pruner: ``median``, ``halving`` (successive halving) or ``none``
-    :param n_startup_trials: Trials sampled at random before TPE takes over and before the median pruner prunes
+    :param n_startup_trials: Trials sampled at random before TPE takes over and the median pruner prunes
     :param n_evaluations: Evaluations per run reported to the pruner
     :param eval_episodes: Deterministic episodes of each of those evaluations
     :param final_eval_episodes: Deterministic episodes of each run's final evaluation (the trial's value)
     :param objective: ``return`` (mean return, the RL Zoo's) or ``success`` (success rate) of the evaluations
     :param n_jobs: Worker processes
-    :param storage: Optuna storage: a database URL (``sqlite:///study.db``, needs SQLAlchemy) or a journal file
-        (``*.log``); ``None``: ``study.log`` in the study folder
+    :param storage: A database URL (``sqlite:///study.db``, needs SQLAlchemy) or a journal file (``*.log``);
+        ``None``: ``study.log`` in the study folder
     :param study_name: The study's name (``None``: ``{algo}-{env}``)
     :param sampler_seed: Seed of the sampler (worker ``k`` uses ``sampler_seed + k``)
     :param conf_file: Hyperparameter file whose entry is the starting point (``None``: the shipped ``{algo}.yml``)
     :param overrides: Values fixed in every trial (``-params``), outside the search
     :param env_kwargs: Keyword arguments of ``gym.make``
-    :param eval_env_kwargs: Keyword arguments of ``gym.make`` for the evaluations only (periodic and final),
-        replacing those keys of ``env_kwargs`` (held-out layouts, say)
+    :param eval_env_kwargs: Keyword arguments of ``gym.make`` replacing those of ``env_kwargs`` in the evaluations
     :param search_space: Choices per key, drawn in every trial (see :class:`~sb3_adc.experiment.samplers.Space`)
     :param log_folder: Root of the log layout
     :param device: PyTorch device
@@ -99,7 +94,20 @@ class TuneSettings:
         ):
             if name not in accepted:
                 raise refused(option, f"{name!r}; accepted: {', '.join(accepted)}")
-        self._check_search_space()
+        # The shape of the search space here; its values are checked by `check_search_space`.
+        space = self.search_space
+        if not isinstance(space, dict) or not all(isinstance(key, str) for key in space):
+            raise refused("--search-space", f"must map hyperparameter names to lists of choices, got {space!r}")
+        if len(space) > MAX_SEARCH_KEYS:
+            raise refused("--search-space", f"at most {MAX_SEARCH_KEYS} keys, got {len(space)}")
+        for key, choices in space.items():
+            option = f"--search-space {key}"
+            if not isinstance(choices, list) or not 1 <= len(choices) <= MAX_CHOICES:
+                raise refused(option, f"must be a list of 1 to {MAX_CHOICES} choices, got {choices!r}")
+            if key in self.overrides:
+                raise refused(option, "is fixed by -params: a key is either fixed or searched")
+            if key in ("n_timesteps", "policy"):
+                raise refused(option, "is not searched: every trial has the same budget and policy")
         for option, value, minimum in (
             ("--n-trials", self.n_trials, 1),
             ("--n-jobs", self.n_jobs, 1),
@@ -119,22 +127,6 @@ class TuneSettings:
         if not self.seeds or any(seed < 0 for seed in self.seeds) or len(set(self.seeds)) != len(self.seeds):
             raise refused("--tuning-seeds", f"distinct seeds >= 0 are needed, got {list(self.seeds)}")
         self.seeds = tuple(int(seed) for seed in self.seeds)
-
-    def _check_search_space(self) -> None:
-        """The shape of :attr:`search_space`; its values are checked by :func:`check_search_space`."""
-        space = self.search_space
-        if not isinstance(space, dict) or not all(isinstance(key, str) for key in space):
-            raise refused("--search-space", f"must map hyperparameter names to lists of choices, got {space!r}")
-        if len(space) > MAX_SEARCH_KEYS:
-            raise refused("--search-space", f"at most {MAX_SEARCH_KEYS} keys, got {len(space)}")
-        for key, choices in space.items():
-            option = f"--search-space {key}"
-            if not isinstance(choices, list) or not 1 <= len(choices) <= MAX_CHOICES:
-                raise refused(option, f"must be a list of 1 to {MAX_CHOICES} choices, got {choices!r}")
-            if key in self.overrides:
-                raise refused(option, "is fixed by -params: a key is either fixed or searched")
-            if key in ("n_timesteps", "policy"):
-                raise refused(option, "is not searched: every trial has the same budget and policy")
 
     def evaluation_env_kwargs(self, entry_env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
         """
@@ -178,8 +170,7 @@ def objective_value(settings: TuneSettings, mean_return: float, success_rate: fl
 
 def check_success_reported(settings: TuneSettings, env: gym.Env) -> None:
     """
-    ``objective="success"`` needs episodes that end with ``info["is_success"]``
-    (:func:`~sb3_adc.experiment.evaluation.success_unreported`), checked before anything is written.
+    Check that episodes end with ``info["is_success"]``, as ``objective="success"`` needs, before anything is written.
 
     :param env: The evaluation environment, with the entry's wrappers (closed here)
     :raises HyperparamsError: naming ``--objective`` if the episode ends without ``is_success`` or does not end
@@ -195,8 +186,7 @@ def check_success_reported(settings: TuneSettings, env: gym.Env) -> None:
 
 def check_search_space(settings: TuneSettings) -> None:
     """
-    Every choice of ``settings.search_space`` resolved with the starting entry, as ``-params`` would be, so that a
-    choice the loader rejects stops the study before a folder is made.
+    Resolve every choice of ``settings.search_space`` with the starting entry, as ``-params``, before a folder is made.
 
     :raises HyperparamsError: naming the key and the choice
     """

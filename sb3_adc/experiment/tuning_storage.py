@@ -10,7 +10,7 @@ import shutil
 import stat
 import warnings
 from types import SimpleNamespace
-from typing import Any, cast
+from typing import Any
 
 import optuna
 from optuna.storages.journal import JournalFileBackend, JournalFileSymlinkLock
@@ -30,8 +30,7 @@ TUNING_ACTIVITY = "tuning its study (one command per study kept in a journal fil
 def study_lock(settings: TuneSettings) -> contextlib.AbstractContextManager[Any]:
     """
     The lock :func:`~sb3_adc.experiment.tuning.tune` holds for its life: the study folder's
-    :class:`~sb3_adc.experiment.layout.FolderLock`, unless the study is kept in a database (``--storage`` URL), which
-    several commands share on purpose.
+    :class:`~sb3_adc.experiment.layout.FolderLock`; none for a database (``--storage`` URL), shared on purpose.
 
     :param settings: The study's settings
     """
@@ -42,13 +41,10 @@ def study_lock(settings: TuneSettings) -> contextlib.AbstractContextManager[Any]
 
 def repair_journal(path: str) -> str | None:
     """
-    Cut a torn last line off an Optuna journal file, so that a study whose last write was cut short (its
-    process killed mid-write) can be continued.
-
-    Optuna skips a last line without its newline when it reads the journal, but appends its next record to it,
-    which makes a line that no later read can decode. Here, under the journal's own lock, a file that does not end
-    with a newline is copied to ``{path}.torn-{n}`` (the first free ``n``) and truncated after its last newline; a
-    warning names both files.
+    Cut a torn last line (a write cut short by a crash) off an Optuna journal file, so that its study can continue:
+    Optuna skips that line when it reads but appends its next record to it, making a line no read can decode. Under
+    the journal's lock, the file is copied to ``{path}.torn-{n}`` (the first free ``n``) and truncated after its last
+    newline; a warning names both files.
 
     :param path: The journal file (one that does not exist is left alone)
     :return: The copy of the torn file, or ``None`` where nothing was torn
@@ -86,9 +82,7 @@ def hide_password(text: str, url: str) -> str:
     :param url: The URL
     """
     match = _PASSWORD.search(url)
-    if match is None or not match.group(2):
-        return text
-    return text.replace(match.group(2), "***")
+    return text.replace(match.group(2), "***") if match and match.group(2) else text
 
 
 def check_storage(url: str) -> None:
@@ -137,12 +131,12 @@ def open_study(settings: TuneSettings, worker: int) -> optuna.Study:
     """
     url = settings.storage_url()
     seed = settings.sampler_seed + worker
-    sampler: optuna.samplers.BaseSampler = optuna.samplers.RandomSampler(seed=seed)
+    # The Zoo's random sampler and pruners (median after `n_evaluations // 3` warm-up steps, successive halving, none);
+    # not its TPE, which is multivariate: that would change the draws of committed studies.
+    zoo: Any = SimpleNamespace(seed=seed, n_startup_trials=settings.n_startup_trials, n_evaluations=settings.n_evaluations)
+    sampler = ExperimentManager._create_sampler(zoo, "random")
     if settings.sampler == "tpe":
-        # Not the Zoo's `_create_sampler`: its TPE is multivariate, which would change the draws of committed studies.
         sampler = optuna.samplers.TPESampler(n_startup_trials=settings.n_startup_trials, seed=seed)
-    # The Zoo's pruners (median after `n_evaluations // 3` warm-up steps, successive halving, none).
-    zoo = cast(Any, SimpleNamespace(n_startup_trials=settings.n_startup_trials, n_evaluations=settings.n_evaluations))
     pruner = ExperimentManager._create_pruner(zoo, settings.pruner)
     try:
         storage: str | optuna.storages.BaseStorage = url  # a database: Optuna opens it (SQLAlchemy needed)

@@ -17,7 +17,7 @@ import optuna
 import yaml
 from optuna.exceptions import ExperimentalWarning
 from optuna.storages import RetryHeartbeatStaleTrialCallback
-from optuna.trial import TrialState
+from optuna.trial import FrozenTrial, TrialState
 from rl_zoo3.callbacks import TrialEvalCallback as ZooTrialEvalCallback
 from stable_baselines3.common.callbacks import EvalCallback
 
@@ -67,7 +67,7 @@ def objective(trial: optuna.Trial, settings: TuneSettings, base: dict[str, Any])
     values = []
     try:
         for index, seed in enumerate(settings.seeds):
-            final = _run_seed(trial, settings, hyperparams_file, trial_dir, index, seed, earlier)
+            final = _run_seed(trial, settings, trial_dir, seed, index * settings.n_evaluations, earlier)
             trial.set_user_attr(f"return_seed_{seed}", final.mean_return)
             if settings.objective == "success":
                 trial.set_user_attr(f"success_seed_{seed}", final.success_rate)
@@ -82,18 +82,11 @@ def objective(trial: optuna.Trial, settings: TuneSettings, base: dict[str, Any])
 
 
 def _run_seed(
-    trial: optuna.Trial,
-    settings: TuneSettings,
-    hyperparams_file: str,
-    trial_dir: str,
-    index: int,
-    seed: int,
-    earlier: Mapping[int, float] | None,
+    trial: optuna.Trial, settings: TuneSettings, trial_dir: str, seed: int, first: int, earlier: Mapping[int, float] | None
 ) -> FinalEvaluation:
-    """Train (or, in a continued trial, resume or reuse) the run of one seed; its final evaluation."""
-    run_dir = os.path.join(trial_dir, f"seed_{seed}")
+    """Train (or, in a continued trial, resume or reuse) the run of one seed, reporting from step ``first``."""
+    run_dir, hyperparams_file = os.path.join(trial_dir, f"seed_{seed}"), os.path.join(trial_dir, "hyperparams.yml")
     layout = RunLayout(run_dir, settings.env_id)
-    first = index * settings.n_evaluations
     if earlier is not None and layout.is_finished():
         _carry_reports(trial, earlier, first, first + settings.n_evaluations)
         return resume(run_dir).final_evaluation
@@ -102,22 +95,17 @@ def _run_seed(
         if earlier is not None and os.path.isdir(layout.params_dir):
             result = resume(run_dir, callbacks=[callback])
         else:
+            same = ("algo", "env_id", "n_timesteps", "log_folder", "final_eval_episodes", "device", "verbose")
             run_settings = TrainSettings(
-                algo=settings.algo,
-                env_id=settings.env_id,
+                **{key: getattr(settings, key) for key in same},
                 seed=seed,
                 conf_file=hyperparams_file,
                 env_kwargs=dict(settings.env_kwargs),
                 eval_env_kwargs=dict(settings.eval_env_kwargs),
-                n_timesteps=settings.n_timesteps,
-                log_folder=settings.log_folder,
                 run_dir=run_dir,
                 eval_freq=-1,
                 save_freq=callback.interval,  # a checkpoint at every evaluation: a continuation resumes from there
                 keep_checkpoints=1,
-                final_eval_episodes=settings.final_eval_episodes,
-                device=settings.device,
-                verbose=settings.verbose,
                 progress_bar=False,
             )
             result = train(run_settings, callbacks=[callback])
@@ -135,15 +123,11 @@ def _run_seed(
 def _continued_trial(
     trial: optuna.Trial, settings: TuneSettings, entry: Mapping[str, Any]
 ) -> tuple[dict[int, float] | None, str]:
-    """
-    For a trial that continues an interrupted one with the same entry: that trial's reported evaluations and its
-    folder; otherwise ``None`` and the trial's own folder (a changed starting entry or ``-params`` start afresh).
-    """
+    """The reported evaluations and folder of the interrupted trial this one continues with the same entry; else
+    ``None`` and the trial's own folder (a changed starting entry or ``-params`` start afresh)."""
     own = f"trial_{trial.number}"
     trials = trial.study.get_trials(deepcopy=False)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ExperimentalWarning)
-        history = RetryHeartbeatStaleTrialCallback.retry_history(trials[trial.number])
+    history = _retry_history(trials[trial.number])
     if not history:
         return None, own
     previous = trials[history[-1]]
@@ -165,13 +149,19 @@ def _carry_reports(trial: optuna.Trial, earlier: Mapping[int, float], first: int
             trial.report(earlier[step], step)
 
 
+def _retry_history(trial: FrozenTrial) -> list[int]:
+    """Optuna's ``retry_history`` of a trial (without its ``ExperimentalWarning``)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExperimentalWarning)
+        return RetryHeartbeatStaleTrialCallback.retry_history(trial)
+
+
 def trial_entry(
     base: Mapping[str, Any], params: Mapping[str, Any], overrides: Mapping[str, Any], n_timesteps: int | None = None
 ) -> dict[str, Any]:
     """
     The hyperparameter entry of a trial: the starting entry, the sampled values, then the fixed overrides, merged
-    as :func:`~sb3_adc.config.loader.apply_overrides` merges ``-params`` (a drawn noise type other than
-    ``epsilon-normal`` drops the starting entry's epsilon keys).
+    as :func:`~sb3_adc.config.loader.apply_overrides` merges ``-params``.
 
     :param base: The starting entry
     :param params: The sampled values
@@ -187,17 +177,16 @@ def trial_entry(
 
 class TrialEvalCallback(ZooTrialEvalCallback):
     """
-    The RL Zoo's ``TrialEvalCallback``, evaluating a run ``n_evaluations`` times on the timestep count and reporting
-    the study's objective, with the evaluation environment built from the trial's entry and ``eval_env_kwargs``,
-    and the report steps of several seeds laid end to end.
+    The RL Zoo's ``TrialEvalCallback``, reporting the study's objective ``n_evaluations`` times per run (on the
+    timestep count), on the trial entry's evaluation environment, with the report steps of the seeds end to end.
 
     :param trial: The Optuna trial
     :param settings: The study's settings
     :param hyperparams_file: The trial's hyperparameter file
     :param seed: The run's seed
     :param step_offset: Report step of this run's first evaluation
-    :param earlier: The evaluations an interrupted trial reported (by step), carried over for the part of a
-        resumed run that its checkpoint covers
+    :param earlier: The evaluations an interrupted trial reported (by step), carried over where a resumed run's
+        checkpoint covers them
     """
 
     def __init__(
@@ -223,8 +212,7 @@ class TrialEvalCallback(ZooTrialEvalCallback):
         self.n_reports = 0
 
     def _on_training_start(self) -> None:
-        # A resumed run evaluates where an uninterrupted one would and carries over the evaluations before its
-        # checkpoint (they are not redone).
+        # A resumed run evaluates where an uninterrupted one would, carrying over the evaluations before its checkpoint.
         self.schedule.start(self.model.num_timesteps)
         self.n_reports = min(self.model.num_timesteps // self.interval, self.settings.n_evaluations)
         _carry_reports(self.trial, self.earlier, self.step_offset, self.step_offset + self.n_reports)
@@ -264,19 +252,19 @@ def fail_dead_trials(study: optuna.Study) -> None:
 
 def continue_interrupted(study: optuna.Study) -> None:
     """
-    Re-queue each interrupted trial not yet continued, with its parameters and attributes, as Optuna's
-    ``RetryHeartbeatStaleTrialCallback`` re-queues a stale one (:func:`objective` then reuses its runs).
+    Re-queue each interrupted trial not yet continued, with its parameters and attributes, with Optuna's
+    ``RetryHeartbeatStaleTrialCallback`` (:func:`objective` then reuses its runs).
 
     :param study: The study
     """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ExperimentalWarning)
         retry = RetryHeartbeatStaleTrialCallback()
-        trials = study.get_trials(deepcopy=False)
-        continued = {retry.retry_history(trial)[-1] for trial in trials if retry.retry_history(trial)}
-        for trial in trials:
-            if trial.state == TrialState.FAIL and trial.user_attrs.get(INTERRUPTED) and trial.number not in continued:
-                retry(study, trial)
+    trials = study.get_trials(deepcopy=False)
+    continued = {history[-1] for history in map(_retry_history, trials) if history}
+    for trial in trials:
+        if trial.state == TrialState.FAIL and trial.user_attrs.get(INTERRUPTED) and trial.number not in continued:
+            retry(study, trial)
 
 
 def _alive(pid: int) -> bool:
