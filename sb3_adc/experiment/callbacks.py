@@ -1,31 +1,31 @@
 """
-Callbacks of a training run: periodic evaluation and checkpoints that a resumed run continues seamlessly.
-
-Every file a resume reads is written atomically (:mod:`sb3_adc.common.atomic`); :mod:`sb3_adc.experiment.restore`
-reads them back.
+SB3's ``EvalCallback`` and ``CheckpointCallback`` as a resumable run needs them: on the timestep count, every file
+written atomically (:mod:`sb3_adc.common.atomic`; :mod:`sb3_adc.experiment.restore` reads them back).
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import threading
 import zipfile
-from collections.abc import Iterator
-from contextlib import contextmanager
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from types import FrameType
 from typing import Any
 
 import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
+from stable_baselines3.common.save_util import save_to_pkl
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_adc.common.atomic import atomic_path, write_atomically
 from sb3_adc.experiment.continuation import Continuation
 from sb3_adc.experiment.divergence import check_finite_weights
 from sb3_adc.experiment.evaluation import success_rate
-from sb3_adc.experiment.layout import CHECKPOINT_PREFIX, Checkpoint, DamagedFileError, RunLayout
+from sb3_adc.experiment.layout import CHECKPOINT_PREFIX, Checkpoint, DamagedFileError, RunLayout, remove_files
 from sb3_adc.experiment.manifest import write_manifest
 
 
@@ -37,8 +37,7 @@ class EvaluationHistory:
     :param timesteps: Timestep of each evaluation
     :param results: Episode returns of each evaluation
     :param ep_lengths: Episode lengths of each evaluation
-    :param successes: Each evaluation's ``info["is_success"]`` per episode (empty where the episodes do not report
-        it)
+    :param successes: Each evaluation's ``info["is_success"]`` per episode (empty where not reported)
     """
 
     timesteps: list[int] = field(default_factory=list)
@@ -68,8 +67,7 @@ class EvaluationHistory:
             raise DamagedFileError(path, f"{type(error).__name__}: {error}") from error
         if not len(history.timesteps) == len(history.results) == len(history.ep_lengths):
             raise DamagedFileError(path, "timesteps, results and ep_lengths have different lengths")
-        if len(history.successes) != len(history.timesteps):
-            # Runs resumed before the history kept them have fewer rows of successes than evaluations.
+        if len(history.successes) != len(history.timesteps):  # runs resumed before the history kept them
             history.successes = []
         return history
 
@@ -108,9 +106,8 @@ class EvaluationHistory:
 
 class TimestepSchedule:
     """
-    The timesteps at which a callback acts: every multiple of ``every`` timesteps (all training environments
-    together), counted from the model's timestep count, so that a resumed run acts at the timesteps an
-    uninterrupted one would. SB3's callbacks count their own calls, which restart at 0 when a run resumes.
+    When a callback acts: at every multiple of ``every`` of the model's timestep count, so that a resumed run acts
+    when an uninterrupted one would (SB3's callbacks count their own calls, which restart at 0 on resume).
 
     :param every: Timesteps between two actions
     """
@@ -123,7 +120,7 @@ class TimestepSchedule:
         """
         Act next at the first multiple of :attr:`every` after a timestep count.
 
-        :param num_timesteps: The model's count (a resumed run's is that of its checkpoint)
+        :param num_timesteps: The model's count
         """
         self.next = (num_timesteps // self.every + 1) * self.every
 
@@ -141,16 +138,12 @@ class TimestepSchedule:
 
 class PeriodicEvalCallback(EvalCallback):
     """
-    SB3's ``EvalCallback``, scheduled on the timestep count rather than on its own call count, and started from
-    the evaluations of an interrupted run: a resumed run evaluates at the same timesteps, keeps the earlier
-    results in ``evaluations.npz`` and only saves ``best_model.zip`` when it beats them. Both files are written
-    atomically (``EvalCallback`` writes them in place, where a crash leaves them truncated).
+    SB3's ``EvalCallback`` on a :class:`TimestepSchedule`, started from the evaluations of a resumed run (kept in
+    ``evaluations.npz``; ``best_model.zip`` only when beaten), both files written atomically.
 
-    ``best_model_metric="success"`` keeps as ``best_model.zip`` the model of the evaluation with the highest success
-    rate (ties: the higher mean return) instead of SB3's highest mean return, and evaluates every time on the same
-    episodes (the evaluation environments are seeded with ``eval_seed`` before each evaluation), so that the models
-    are compared on equal terms: on procedural courses, the same layouts. SB3's evaluation environments go on from
-    one evaluation to the next, so each model meets other episodes, and the best is partly the luckiest.
+    ``best_model_metric="success"`` keeps the model of the highest success rate (ties: the higher mean return), every
+    evaluation on the same episodes (the environments seeded with ``eval_seed`` first), so that models are compared
+    on equal terms rather than on SB3's ever-new episodes.
 
     :param eval_env: The evaluation environments
     :param every: Evaluate every this many timesteps (all training environments together)
@@ -158,8 +151,7 @@ class PeriodicEvalCallback(EvalCallback):
     :param n_eval_episodes: Episodes per evaluation
     :param run_dir: Folder of ``evaluations.npz`` and ``best_model.zip``
     :param verbose: 1 to print each evaluation
-    :param best_model_metric: ``return`` (SB3's rule) or ``success`` (see above; the episodes must report
-        ``info["is_success"]``)
+    :param best_model_metric: ``return`` (SB3's rule) or ``success`` (see above)
     :param eval_seed: Seed of the evaluation environments before each evaluation (``best_model_metric="success"``)
     """
 
@@ -190,15 +182,12 @@ class PeriodicEvalCallback(EvalCallback):
         self.evaluations_results = list(history.results)
         self.evaluations_length = list(history.ep_lengths)
         self.evaluations_successes = list(history.successes)
-        if history.results:
-            self.best_mean_reward = max(float(np.mean(row)) for row in history.results)
+        mean_returns = [float(np.mean(row)) for row in history.results]
+        self.best_mean_reward = max(mean_returns, default=self.best_mean_reward)
         self.best_model_metric = best_model_metric
         self.eval_seed = eval_seed
-        self.best_success: tuple[float, float] | None = None
-        mean_returns = [float(np.mean(row)) for row in history.results]
         scores = [(rate, mean) for rate, mean in zip(history.success_rates(), mean_returns, strict=False) if rate is not None]
-        if scores:
-            self.best_success = max(scores)
+        self.best_success: tuple[float, float] | None = max(scores, default=None)
 
     def _init_callback(self) -> None:
         super()._init_callback()
@@ -236,8 +225,7 @@ class PeriodicEvalCallback(EvalCallback):
 
 def save_model(model: BaseAlgorithm, path: str, vecnormalize_path: str) -> None:
     """
-    Save a model and its ``VecNormalize`` statistics (where it has them), each atomically, the model last: a
-    checkpoint counts once its model zip exists.
+    Save a model and its ``VecNormalize`` statistics (where it has them), each atomically, the model last.
 
     :param model: The model
     :param path: Its zip
@@ -253,8 +241,7 @@ def save_model(model: BaseAlgorithm, path: str, vecnormalize_path: str) -> None:
 
 class StopRequested(Exception):
     """
-    Raised by :class:`CheckpointSaver` at the end of a step's callbacks when a stop was requested (Ctrl-C), once
-    the checkpoint of that step is saved.
+    Raised by :class:`CheckpointSaver` once the checkpoint of a step is saved, when a stop was requested (Ctrl-C).
 
     :param timesteps: The checkpoint's timestep
     """
@@ -266,15 +253,10 @@ class StopRequested(Exception):
 
 class CheckpointSaver(CheckpointCallback):
     """
-    SB3's ``CheckpointCallback`` with its file names (model, replay buffer and ``VecNormalize`` statistics), saving
-    every ``every`` timesteps rather than every ``save_freq`` calls (so a resumed run saves at the timesteps an
-    uninterrupted one would), each file atomically, and keeping the ``keep`` latest checkpoints. Give it after the
-    evaluation callback: a checkpoint then includes the evaluation of its timestep. A model whose weights are not
-    finite is never saved. Each checkpoint also holds, where one is exact, the
-    :class:`~sb3_adc.experiment.continuation.Continuation` that makes a resumed run the same run.
-
-    Setting :attr:`stop_requested` (the engine's Ctrl-C handler does) makes the next step save a checkpoint and
-    raise :class:`StopRequested`: a stop at a point a resume continues exactly.
+    SB3's ``CheckpointCallback`` (its file names) on a :class:`TimestepSchedule`, each file written atomically, the
+    ``keep`` latest checkpoints kept, never a model with non-finite weights, and with each checkpoint, where one is
+    exact, its :class:`~sb3_adc.experiment.continuation.Continuation`. Give it after the evaluation callback. Setting
+    :attr:`stop_requested` (Ctrl-C) makes the next step save a checkpoint and raise :class:`StopRequested`.
 
     :param layout: The run's paths
     :param every: Timesteps between checkpoints (0: none but those of a requested stop)
@@ -304,59 +286,62 @@ class CheckpointSaver(CheckpointCallback):
 
     def save(self, step_locals: dict[str, Any] | None = None, exact: bool = True) -> Checkpoint:
         """
-        Save a checkpoint at the current timestep now (also used at the end of training and when training is
-        interrupted).
+        Save a checkpoint at the current timestep now.
 
-        :param step_locals: ``collect_rollouts``' locals when saving inside a step (the periodic checkpoints),
-            ``None`` between steps
-        :param exact: Whether the run is at a point it can be continued exactly from (``False``: interrupted
-            wherever a ``KeyboardInterrupt`` fell, such as a second Ctrl-C's; the checkpoint then holds no
-            continuation)
+        :param step_locals: ``collect_rollouts``' locals when saving inside a step, ``None`` between steps
+        :param exact: Whether the run can be continued exactly from here (``False``: no continuation is saved)
         :raises NonFiniteWeights: if the model's weights hold NaN or inf (nothing is written)
         """
         check_finite_weights(self.model)
         self.num_timesteps = self.model.num_timesteps
         checkpoint = self.layout.checkpoint(self.num_timesteps)
-        # Before the model: a continuation or manifest left by an earlier checkpoint of this timestep is not this one's.
-        for stale in (checkpoint.manifest, checkpoint.continuation):
-            if os.path.exists(stale):
-                os.remove(stale)
-        # Replay buffer, statistics and continuation first: a checkpoint counts once its model zip exists.
+        remove_files((checkpoint.manifest, checkpoint.continuation))  # those of an earlier checkpoint of this timestep
+        # The model last: a checkpoint counts once its model zip exists.
         if hasattr(self.model, "save_replay_buffer") and getattr(self.model, "replay_buffer", None) is not None:
             with atomic_path(checkpoint.replay_buffer) as temporary:
                 self.model.save_replay_buffer(temporary)
         continuation = Continuation.capture(self.model, self.eval_env, step_locals) if exact else None
         if continuation is not None:
             with atomic_path(checkpoint.continuation) as temporary:
-                continuation.save(temporary)
+                save_to_pkl(temporary, continuation)
         save_model(self.model, checkpoint.model, checkpoint.vecnormalize)
         write_manifest(checkpoint)
         self._prune()
         return checkpoint
 
-    @contextmanager
-    def stopping_on_ctrl_c(self) -> Iterator[None]:
+    def stopping_on_ctrl_c(self) -> contextlib.AbstractContextManager[None]:
         """
-        While the block runs (training), the first Ctrl-C (SIGINT) sets :attr:`stop_requested`: the next step saves
-        a checkpoint and stops; a second one raises ``KeyboardInterrupt`` at once. Signal handlers belong to the main
-        thread: elsewhere (a thread of the caller's) Ctrl-C keeps Python's behaviour.
+        While the block runs, the first Ctrl-C (SIGINT) sets :attr:`stop_requested`; a second one raises
+        ``KeyboardInterrupt`` at once.
         """
-        if threading.current_thread() is not threading.main_thread():
-            yield
-            return
 
-        def request_stop(signum: int, frame: Any) -> None:
+        def request_stop(signum: int, frame: FrameType | None) -> None:
             if self.stop_requested:
                 raise KeyboardInterrupt
             self.stop_requested = True
             print("\nCtrl-C: stopping after this step with a checkpoint (Ctrl-C again stops at once).", flush=True)
 
-        previous = signal.signal(signal.SIGINT, request_stop)
-        try:
-            yield
-        finally:
-            signal.signal(signal.SIGINT, previous)
+        return handling_signal(signal.SIGINT, request_stop)
 
     def _prune(self) -> None:
         for old in self.layout.checkpoints()[: -self.keep]:
             old.remove()
+
+
+@contextlib.contextmanager
+def handling_signal(signum: int, handler: Callable[[int, FrameType | None], Any]) -> Iterator[None]:
+    """
+    ``handler`` handles ``signum`` while the block runs, the previous handler after it. Outside the main thread,
+    where Python sets no handlers, nothing changes.
+
+    :param signum: The signal
+    :param handler: Its handler
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signum, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signum, previous)

@@ -1,24 +1,16 @@
 """
-Exact resume: what a checkpoint holds beyond SB3's model and replay buffer, so that a resumed run is the run it
-continues, draw for draw.
+Exact resume: what a checkpoint holds beyond SB3's model and replay buffer (which leave out the random generators
+and the episodes in progress), so that a resumed run is the run it continues, draw for draw.
 
-SB3 saves the model and the replay buffer, not the random generators (Python, NumPy, PyTorch, the action space,
-each environment's own) nor the episode in progress, so a run resumed from them goes on as another run of its
-seed. A :class:`Continuation` (``rl_model_continuation_{t}_steps.pkl``) keeps them, in the form Gymnasium's
-contract makes enough: an environment is determined by the state of its random generators before a reset and
-the actions taken since (:class:`EpisodeRecorder` keeps both for the episode in progress and replays them into a
-new environment). A periodic checkpoint is taken inside SB3's step (``CheckpointCallback`` is called after the
-environments step and before the transition is stored and trained on), so the continuation also holds that step
-(:class:`PendingStep`), which a resume stores and trains on before SB3's loop goes on.
+A :class:`Continuation` (``rl_model_continuation_{t}_steps.pkl``) keeps the generators, each environment's episode
+in progress as Gymnasium's contract makes enough (its generators before the reset and the actions since, kept and
+replayed by :class:`EpisodeRecorder`), and the step a periodic checkpoint is taken inside (:class:`PendingStep`),
+which a resume stores and trains on before SB3's loop goes on. It is read back by a restricted unpickler
+(:data:`~sb3_adc.common.safe_load.CONTINUATION_GLOBALS`).
 
-Not exact, and resumed on a new random stream as before: checkpoints saved on Ctrl-C (taken wherever the
-interruption fell), checkpoints of older versions, runs with ``frame_stack`` or other stateful ``VecEnv`` wrappers,
-gSDE exploration, and rollouts that a periodic checkpoint cuts (``train_freq`` longer than one step, which the
-checkpoint does not fall at the end of).
-
-A continuation is read back with an unpickler that builds only what one holds
-(:data:`~sb3_adc.common.safe_load.CONTINUATION_GLOBALS`), so a file planted in a run folder runs no code
-(:func:`~sb3_adc.common.safe_load.restricted_load`).
+Not exact (resumed on a new random stream): checkpoints of a Ctrl-C that fell anywhere, of older versions, of runs
+with ``frame_stack`` or other stateful ``VecEnv`` wrappers or gSDE, and of rollouts a checkpoint cuts (``train_freq``
+longer than one step).
 """
 
 from __future__ import annotations
@@ -33,7 +25,6 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
-from stable_baselines3.common.save_util import save_to_pkl
 from stable_baselines3.common.type_aliases import TrainFreq
 from stable_baselines3.common.utils import should_collect_more_steps
 from stable_baselines3.common.vec_env import VecCheckNan, VecEnv, VecEnvWrapper, VecNormalize, unwrap_vec_normalize
@@ -47,8 +38,7 @@ _RESTORABLE_VEC_WRAPPERS = (VecCheckNan, VecNormalize)
 
 def generator_states(env: gym.Env[Any, Any]) -> dict[tuple[int, str], Any]:
     """
-    The states of the random generators of every layer of an environment: the unwrapped environment's
-    ``np_random`` and any generator a wrapper keeps (e.g. an observation-noise wrapper's own).
+    The states of the random generators of every layer of an environment (``np_random``, a wrapper's own).
 
     :param env: The environment (wrapped or not)
     :return: ``(depth, attribute) -> state``, depth 0 being ``env`` itself
@@ -65,8 +55,7 @@ def generator_states(env: gym.Env[Any, Any]) -> dict[tuple[int, str], Any]:
 
 def set_generator_states(env: gym.Env[Any, Any], states: dict[tuple[int, str], Any]) -> None:
     """
-    Restore the states of :func:`generator_states` into an environment built the same way (a generator not made
-    yet is made with the saved bit generator).
+    Restore the states of :func:`generator_states` into an environment built the same way (making a missing generator).
 
     :param env: The environment
     :param states: What :func:`generator_states` returned for the environment to continue
@@ -114,11 +103,8 @@ class EpisodeRecord:
 
 class EpisodeRecorder(gym.Wrapper[Any, Any, Any, Any]):
     """
-    Keep what replays the episode in progress (:class:`EpisodeRecord`), and replay one into this environment.
-
-    It wraps every other wrapper of a run's environment, so a replay goes through all of them (episode statistics,
-    reward shaping, observation noise) as the original steps did. It holds the actions of one episode, so its
-    memory grows with the episode's length (environments without a time limit keep them all).
+    Keep what replays the episode in progress (:class:`EpisodeRecord`), and replay one into this environment. It
+    wraps every other wrapper, so a replay goes through them all; its memory grows with the episode's length.
 
     :param env: The environment
     """
@@ -142,8 +128,7 @@ class EpisodeRecorder(gym.Wrapper[Any, Any, Any, Any]):
 
     def replay_episode(self, record: EpisodeRecord) -> None:
         """
-        Bring this environment, built as the recorded one was, to the state the recorded one is in: its
-        generators as they were before the episode's reset, the reset, then the actions.
+        Bring this environment, built as the recorded one was, to the recorded one's state: generators, reset, actions.
 
         :param record: What :meth:`episode_record` returned for the environment to continue
         """
@@ -157,8 +142,7 @@ class EpisodeRecorder(gym.Wrapper[Any, Any, Any, Any]):
 @dataclass
 class PendingStep:
     """
-    The step a periodic checkpoint was taken inside: the environments have stepped, SB3 has not yet stored the
-    transition nor trained on it (the locals of ``OffPolicyAlgorithm.collect_rollouts`` at the callback).
+    The step a periodic checkpoint was taken inside: stepped, not yet stored nor trained on (``collect_rollouts``' locals).
 
     :param buffer_actions: The actions as stored in the replay buffer
     :param new_obs: The observations the step returned
@@ -184,8 +168,7 @@ class PendingStep:
     @classmethod
     def of_locals(cls, variables: dict[str, Any], vec_normalize: VecNormalize | None) -> PendingStep | None:
         """
-        The pending step of ``collect_rollouts``' locals, or ``None`` if the rollout goes on after it (a checkpoint
-        that cuts a rollout cannot be continued exactly: SB3's loop would start a new one).
+        The pending step of ``collect_rollouts``' locals, or ``None`` if the rollout goes on after it (not exact).
 
         :param variables: The locals SB3 gave the callbacks
         :param vec_normalize: The training environments' ``VecNormalize``, if any
@@ -221,8 +204,7 @@ class Continuation:
     :param last_episode_starts: The model's ``_last_episode_starts``
     :param training_episodes: The episode in progress of each training environment
     :param evaluation_episodes: The same for the evaluation environments (``None``: none)
-    :param vec_normalize: ``VecNormalize``'s running discounted returns (``None`` without it; its statistics are
-        the checkpoint's ``vecnormalize`` file)
+    :param vec_normalize: ``VecNormalize``'s running discounted returns (``None`` without it)
     :param pending: The step the checkpoint was taken inside (``None``: taken between steps)
     :param version: :data:`CONTINUATION_VERSION`
     """
@@ -245,8 +227,7 @@ class Continuation:
 
         :param model: The model being trained (its environment is the training one)
         :param eval_env: The evaluation environments of the run, if any
-        :param step_locals: ``collect_rollouts``' locals when called inside a step (a periodic checkpoint),
-            ``None`` between steps (the checkpoint at the end of training)
+        :param step_locals: ``collect_rollouts``' locals when called inside a step, ``None`` between steps
         """
         env = model.get_env()
         if not isinstance(model, OffPolicyAlgorithm) or env is None or model.use_sde:
@@ -254,11 +235,9 @@ class Continuation:
         if not _restorable(env) or (eval_env is not None and not _restorable(eval_env)):
             return None
         vec_normalize = unwrap_vec_normalize(env)
-        pending = None
-        if step_locals is not None:
-            pending = PendingStep.of_locals(step_locals, vec_normalize)
-            if pending is None:
-                return None
+        pending = PendingStep.of_locals(step_locals, vec_normalize) if step_locals is not None else None
+        if step_locals is not None and pending is None:
+            return None
         return cls(
             timesteps=model.num_timesteps,
             random_states=_random_states(model),
@@ -271,31 +250,10 @@ class Continuation:
             pending=pending,
         )
 
-    def save(self, path: str) -> None:
-        """
-        Write the continuation (pickled, as SB3 writes replay buffers).
-
-        :param path: The file
-        """
-        save_to_pkl(path, self)
-
-    @classmethod
-    def accept(cls, loaded: object) -> Continuation | None:
-        """
-        The continuation an unpickled file holds, or ``None`` if it holds another version's (or something else). The
-        file is read as a checkpoint's other pickles are (:func:`~sb3_adc.experiment.restore.read_checkpoint`).
-
-        :param loaded: The unpickled object
-        """
-        if not isinstance(loaded, cls) or getattr(loaded, "version", None) != CONTINUATION_VERSION:
-            return None
-        return loaded
-
     def restore(self, model: OffPolicyAlgorithm, eval_env: VecEnv | None, remaining: int) -> None:
         """
-        Continue the run in ``model`` (loaded from the checkpoint, with its replay buffer and environments):
-        replay each environment's episode in progress, restore the loop's state and the random generators, then
-        store and train on the pending step. ``model.learn`` then goes on as the uninterrupted run did.
+        Continue the run in ``model`` (loaded from the checkpoint): replay the episodes in progress, restore the loop's
+        state and the generators, then store and train on the pending step; ``model.learn`` goes on from there.
 
         :param model: The model loaded from the checkpoint
         :param eval_env: The run's evaluation environments (``None``: none)
@@ -318,9 +276,7 @@ class Continuation:
 
 
 def _restorable(venv: VecEnv) -> bool:
-    """Whether a continuation restores the state of these environments: each wrapped in an
-    :class:`EpisodeRecorder`, and no ``VecEnv`` wrapper with a state of its own (``VecFrameStack``'s past
-    observations) besides ``VecNormalize``'s."""
+    """Whether each environment has an :class:`EpisodeRecorder` and no ``VecEnv`` wrapper keeps a state of its own."""
     while isinstance(venv, VecEnvWrapper):
         if not isinstance(venv, _RESTORABLE_VEC_WRAPPERS):
             return False
@@ -335,8 +291,7 @@ def _replay(venv: VecEnv, records: list[EpisodeRecord | None]) -> None:
             venv.env_method("replay_episode", record, indices=[index])
             replayed = True
     if replayed:
-        # The seeds given when the environments were made were used by the original run's first reset: a later
-        # ``VecEnv.reset`` must not apply them again.
+        # The original run's first reset used the seeds: a later ``VecEnv.reset`` must not apply them again.
         venv.unwrapped._reset_seeds()
         venv.unwrapped._reset_options()
 
@@ -364,15 +319,13 @@ def _set_random_states(model: BaseAlgorithm, states: dict[str, Any]) -> None:
 
 def _complete(model: OffPolicyAlgorithm, pending: PendingStep, vec_normalize: VecNormalize | None, remaining: int) -> None:
     """
-    What SB3's ``collect_rollouts`` does after the callbacks of the pending step, then ``learn``'s training on the
-    rollout. Written out because SB3 has no entry into its loop in the middle of a step; the lines follow
-    ``OffPolicyAlgorithm.collect_rollouts`` and ``OffPolicyAlgorithm.learn`` (stable-baselines3 2.x).
+    What ``OffPolicyAlgorithm.collect_rollouts`` does after the pending step's callbacks, then ``learn``'s training
+    (SB3 2.x, written out: SB3 has no entry into its loop in the middle of a step).
     """
     env, replay_buffer = model.get_env(), model.replay_buffer
     assert env is not None, "the model is loaded with its environments"
     assert replay_buffer is not None, "the model is loaded with its replay buffer"
-    # What `learn` sets up before its loop (episode buffers, the vectorized noise, the timestep target); `learn`
-    # called next finds them set.
+    # What `learn` sets up before its loop (episode buffers, the vectorized noise, the timestep target).
     model._setup_learn(remaining, callback=None, reset_num_timesteps=False)
     if vec_normalize is not None:
         assert pending.original_obs is not None

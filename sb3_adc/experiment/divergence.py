@@ -1,9 +1,6 @@
 """
-Stop a run at the first NaN or infinity, before it is saved: in what the environments return (observations,
-rewards), in the actions the model takes, or in the model's weights.
-
-The detection is SB3's ``VecCheckNan``; this module only turns its ``ValueError`` into :class:`TrainingDiverged`,
-which names the source and the timestep, and adds the check of the weights that a checkpoint needs.
+Stop a run at the first NaN or infinity (in observations, rewards, actions or weights) before it is saved: SB3's
+``VecCheckNan``, its error named (:class:`NonFiniteValue`), and a check of the weights before each checkpoint.
 """
 
 from __future__ import annotations
@@ -45,8 +42,7 @@ class TrainingDiverged(RuntimeError):
 
     :param run_dir: The run's folder
     :param timesteps: The timestep at which it was found
-    :param source: What held it: ``observation``, ``reward``, ``action`` (of the training or evaluation
-        environment) or ``weights``
+    :param source: What held it: ``observation``, ``reward``, ``action`` or ``weights``
     :param detail: What was found, in words
     :param last_checkpoint: Timestep of the newest checkpoint on disk (``None``: none)
     """
@@ -106,7 +102,7 @@ class FiniteCheck(VecCheckNan):
 
 def check_finite_weights(model: BaseAlgorithm) -> None:
     """
-    Check that every parameter of the model's policy (actor, critics and their targets) is finite.
+    Check that every parameter of the model's policy (actor, critics, targets) is finite.
 
     :param model: The model
     :raises NonFiniteWeights: naming the parameters that are not
@@ -120,8 +116,7 @@ def _non_finite_kind(value: Any) -> str | None:
     if isinstance(value, dict):
         value = list(value.values())
     if isinstance(value, (list, tuple)):
-        kinds = [_non_finite_kind(item) for item in value]
-        return next((kind for kind in kinds if kind is not None), None)
+        return next((kind for kind in map(_non_finite_kind, value) if kind is not None), None)
     array = np.asarray(value)
     if not np.issubdtype(array.dtype, np.number):
         return None

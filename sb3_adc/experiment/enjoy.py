@@ -44,8 +44,7 @@ def load_run(run_dir: str) -> tuple[TrainSettings, ExperimentConfig, RunLayout]:
 
     :param run_dir: The run's folder
     :raises FileNotFoundError: if the folder holds no run
-    :raises HyperparamsError: if its ``config.yml`` or ``args.yml`` is not YAML or is over a limit of
-        :mod:`sb3_adc.config.loader`, or holds invalid hyperparameters
+    :raises HyperparamsError: if its ``config.yml`` or ``args.yml`` does not read or holds invalid values
     """
     settings = TrainSettings.of_run(run_dir)
     layout = RunLayout(run_dir, settings.env_id)
@@ -64,10 +63,8 @@ def model_path(layout: RunLayout, which: str) -> tuple[str, str | None]:
     if which not in MODEL_CHOICES:
         raise ValueError(f"`which` must be one of {', '.join(MODEL_CHOICES)}, got {which!r}.")
     statistics: str | None = layout.vecnormalize
-    if which == "final":
-        path = layout.final_model
-    elif which == "best":
-        path = layout.best_model
+    if which != "last-checkpoint":
+        path = layout.final_model if which == "final" else layout.best_model
     else:
         checkpoints = layout.checkpoints()
         if not checkpoints:
@@ -85,8 +82,7 @@ def load_model(config: ExperimentConfig, path: str, device: str = "auto", safe: 
     :param config: The run's hyperparameters (for the algorithm class)
     :param path: The model zip
     :param device: PyTorch device
-    :param safe: Run no code from the file (:func:`~sb3_adc.common.safe_load.safe_objects`, for any SB3 algorithm);
-        ``False`` unpickles it as SB3 does
+    :param safe: Run no code from the file (:func:`~sb3_adc.common.safe_load.safe_objects`); ``False``: as SB3 does
     :raises UnsafeModelFileError: if ``safe`` and the file needs a class outside the safe load's allow-list
     """
     kwargs: dict[str, Any] = {"buffer_size": 1} if issubclass(config.algorithm_class, OffPolicyAlgorithm) else {}
@@ -97,9 +93,7 @@ def load_model(config: ExperimentConfig, path: str, device: str = "auto", safe: 
         except UnsafeModelFileError:
             raise
         except (OSError, zipfile.BadZipFile, KeyError, ValueError):
-            # A damaged file: the load below fails on the same entry before it unpickles anything, with the
-            # error that names the file as every load's does.
-            custom_objects = None
+            custom_objects = None  # damaged: the load below fails on it, unpickling nothing, naming the file
     with loading_model():
         return config.algorithm_class.load(path, device=device, custom_objects=custom_objects, **kwargs)
 
@@ -114,8 +108,7 @@ def play(
     record: bool = False,
 ) -> Rollouts:
     """
-    Play ``n_episodes`` episodes of ``model`` in the run's environment (its wrappers, ``env_kwargs`` and
-    ``VecNormalize`` statistics applied).
+    Play ``n_episodes`` episodes of ``model`` in the run's environment (wrappers and statistics applied).
 
     :param model: The model
     :param config: The run's hyperparameters
@@ -141,8 +134,7 @@ def play(
                     rollouts.frames.append(np.asarray(frame))
             action, _ = model.predict(observation, deterministic=deterministic)  # type: ignore[arg-type]
             observation, _, done, infos = venv.step(action)
-            if done[0]:
-                # The Monitor's record of the episode: the environment's own return (before any normalization).
+            if done[0]:  # the Monitor's record: the return before any normalization
                 rollouts.returns.append(float(infos[0]["episode"]["r"]))
                 rollouts.lengths.append(int(infos[0]["episode"]["l"]))
     finally:

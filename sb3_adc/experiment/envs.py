@@ -19,10 +19,8 @@ TOTAL_STEPS_KEY = "total_steps"
 
 class TotalStepsInfo(gym.Wrapper[Any, Any, Any, Any]):
     """
-    Add ``info["total_steps"]``: the steps this environment has taken since training started, across episodes.
-
-    The monitor CSV records it at the end of every episode, which places each episode on the timestep axis and
-    lets a resumed run drop the episodes that came after its checkpoint.
+    Add ``info["total_steps"]``, the steps taken since training started: the monitor CSV records it, which places
+    each episode on the timestep axis (and lets a resume drop the episodes after its checkpoint).
 
     :param env: The environment
     :param offset: Steps already taken (by a run that is being resumed)
@@ -40,7 +38,7 @@ class TotalStepsInfo(gym.Wrapper[Any, Any, Any, Any]):
 
     def set_total_steps(self, total_steps: int) -> None:
         """
-        Set the count (a resumed run, after replaying the episode in progress, which counted its steps again).
+        Set the count (after a resume's replay, which counted the episode's steps again).
 
         :param total_steps: Steps taken since training started
         """
@@ -59,12 +57,10 @@ def make_run_envs(
     render_mode: str | None = None,
 ) -> VecEnv:
     """
-    SB3's ``make_vec_env`` for a run: ``n_envs`` environments of ``config`` (``env_kwargs`` and ``env_wrapper``
-    applied outside the ``Monitor``, and outside them all an
-    :class:`~sb3_adc.experiment.continuation.EpisodeRecorder`, which checkpoints keep for an exact resume),
-    seeded ``seed, seed + 1, ...``; :func:`wrap_vec_env` then applies ``normalize`` and ``frame_stack``. With a
-    ``monitor_dir``, each environment counts its steps across episodes (:class:`TotalStepsInfo`, continuing from
-    ``steps_offset`` on resume) and its ``Monitor`` records that count.
+    SB3's ``make_vec_env`` for a run: ``n_envs`` environments of ``config`` seeded ``seed, seed + 1, ...``, its
+    ``env_wrapper`` outside the ``Monitor`` and an :class:`~sb3_adc.experiment.continuation.EpisodeRecorder` outside
+    all; with a ``monitor_dir``, the ``Monitor`` records :class:`TotalStepsInfo`'s count. :func:`wrap_vec_env` then
+    applies ``normalize`` and ``frame_stack``.
 
     :param config: The resolved hyperparameters
     :param n_envs: Number of environments
@@ -104,19 +100,16 @@ def wrap_vec_env(
     config: ExperimentConfig, venv: VecEnv, training: bool, statistics: str | VecNormalize | None = None
 ) -> VecEnv:
     """
-    Wrap ``venv`` in :class:`~sb3_adc.experiment.divergence.FiniteCheck` (SB3's ``VecCheckNan``: an error at the
-    first NaN or inf), then ``VecNormalize`` and ``VecFrameStack`` if the config asks for them (the RL Zoo's order).
-
-    Every environment of a run goes through here, so training and evaluation environments are wrapped alike,
-    as SB3's ``sync_envs_normalization`` needs.
+    Wrap ``venv`` in :class:`~sb3_adc.experiment.divergence.FiniteCheck` (SB3's ``VecCheckNan``), then
+    ``VecNormalize`` and ``VecFrameStack`` if the config asks for them (the RL Zoo's order), for every environment
+    of a run alike (as ``sync_envs_normalization`` needs).
 
     :param config: The resolved hyperparameters
     :param venv: The environments
     :param training: Whether the statistics are updated and rewards normalized (``False`` for evaluation)
     :param statistics: A saved ``VecNormalize`` to load the statistics from (a file, or one read already)
     """
-    # Inside VecNormalize: a NaN is caught before it spoils the statistics, and named as the environment gave it.
-    venv = FiniteCheck(venv, "training" if training else "evaluation")
+    venv = FiniteCheck(venv, "training" if training else "evaluation")  # inside VecNormalize: before it spoils statistics
     if config.normalize is not None:
         normalized = load_vec_normalize(statistics, venv) if statistics is not None else VecNormalize(venv, **config.normalize)
         if not training:

@@ -11,29 +11,25 @@ id with ``/`` replaced by ``-``, ``run_id`` counts from 1), holding::
     rl_model_{t}_steps.zip                  checkpoint: model at timestep t
     rl_model_replay_buffer_{t}_steps.pkl    checkpoint: replay buffer
     rl_model_vecnormalize_{t}_steps.pkl     checkpoint: VecNormalize statistics (with `normalize`)
-    rl_model_continuation_{t}_steps.pkl     checkpoint: what makes the resumed run the same run (random
-                                            generators, episodes in progress, the step in progress)
+    rl_model_continuation_{t}_steps.pkl     checkpoint: what makes a resume exact (generators, episodes ...)
     rl_model_manifest_{t}_steps.json        checkpoint: size and SHA-256 of each of its files, written last
     {env_name}/config.yml                   the resolved hyperparameters
     {env_name}/args.yml                     the run settings (algorithm, seed, budget, evaluation ...)
     {env_name}/vecnormalize.pkl             final VecNormalize statistics (with `normalize`)
     {env_name}/final_evaluation.json        the final evaluation; written last: the run is finished
-    .lock                                   held by the process writing the run (:class:`FolderLock`)
-
-One process writes a run at a time: :func:`~sb3_adc.experiment.training.train` and
-:func:`~sb3_adc.experiment.training.resume` hold the run's :class:`FolderLock` (an OS lock on ``.lock``) for the
-run's whole life, and a second writer gets :class:`RunLocked` before it writes anything. The OS releases the lock
-when its process ends, however it ends (``kill -9`` included), so a crashed run can be resumed at once.
+    .lock                                   held by the one process writing the run (:class:`FolderLock`)
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import glob
 import os
 import re
 import sys
 import warnings
+from collections.abc import Iterable
 from dataclasses import dataclass
 from types import TracebackType
 
@@ -47,8 +43,7 @@ _WINDOWS_LOCK_OFFSET = 1 << 20
 
 class RunLocked(RuntimeError):
     """
-    Another process is writing the folder (a user error: exit status 2 at the CLI): two processes training one run
-    at once would interleave their checkpoints, episodes and evaluations.
+    Another process is writing the folder (exit status 2 at the CLI).
 
     :param folder: The locked folder
     :param pid: The process holding the lock, if it wrote its PID
@@ -67,11 +62,10 @@ class RunLocked(RuntimeError):
 
 class FolderLock:
     """
-    An exclusive OS lock on a folder's :data:`LOCK_FILE`, taken without waiting: ``fcntl.flock`` (``msvcrt.locking``
-    on Windows; no lock, with a warning, where neither exists or the file system refuses locks). The file is
-    created if needed, holds the holder's PID, and is never deleted: the OS releases the lock when the holder
-    closes it or ends, however it ends. One process holding the lock twice counts as two holders. A context
-    manager.
+    An exclusive OS lock on a folder's :data:`LOCK_FILE`, taken without waiting (``fcntl.flock``, ``msvcrt.locking``
+    on Windows; none, with a warning, where the platform or file system has none). The file holds the holder's PID
+    and is never deleted: the OS releases the lock when its holder ends, however it ends (``kill -9`` included).
+    Two locks of one process are two holders. A context manager.
 
     :param folder: The folder (created if needed)
     :param activity: What the holder does with the folder, for the error of a second one (see :class:`RunLocked`)
@@ -99,24 +93,22 @@ class FolderLock:
             raise RuntimeError(f"{self.path} is already held by this lock.")
         os.makedirs(self.folder, exist_ok=True)
         fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        locked: bool | None = False
         try:
             locked = _try_lock(fd)
-        except BaseException:
-            os.close(fd)
-            raise
-        if locked is None:
-            os.close(fd)
-            return
-        if not locked:
-            os.close(fd)
+        finally:
+            if not locked:
+                os.close(fd)
+        if locked is False:
             raise RunLocked(self.folder, self.holder_pid(), self.activity)
+        if locked is None:
+            return
         self._fd = fd
-        try:
+        with contextlib.suppress(OSError):  # the PID only helps the message of a second writer
+            pid = f"{os.getpid()}\n".encode()
             os.lseek(fd, 0, os.SEEK_SET)
-            os.write(fd, f"{os.getpid()}\n".encode())
-            os.ftruncate(fd, len(f"{os.getpid()}\n"))
-        except OSError:
-            pass  # the PID only helps the message of a second writer
+            os.write(fd, pid)
+            os.ftruncate(fd, len(pid))
 
     def release(self) -> None:
         """Release the lock (nothing if this object does not hold it); the file stays."""
@@ -147,10 +139,7 @@ class FolderLock:
 
 
 def _try_lock(fd: int) -> bool | None:
-    """
-    Lock an open file without waiting: ``True`` when locked, ``False`` when another holder has it, ``None`` when
-    this platform or file system has no lock (after a warning: the run goes on unprotected, as before).
-    """
+    """Lock without waiting: ``True``, ``False`` (another holder has it) or ``None`` (no locks here, after a warning)."""
     if sys.platform == "win32":
         import msvcrt
 
@@ -178,7 +167,6 @@ def _try_lock(fd: int) -> bool | None:
 
 
 def _unlock(fd: int) -> None:
-    """Release the lock :func:`_try_lock` took (closing the file releases it too, the OS's way after a crash)."""
     if sys.platform == "win32":
         import msvcrt
 
@@ -192,7 +180,7 @@ def _unlock(fd: int) -> None:
 
 class DamagedFileError(ValueError):
     """
-    A file of a run cannot be read (truncated or corrupted, e.g. by a crash while it was written).
+    A file of a run cannot be read (truncated or corrupted).
 
     :param path: The file
     :param reason: What is wrong with it
@@ -202,6 +190,13 @@ class DamagedFileError(ValueError):
         super().__init__(f"{path} is damaged: {reason}")
         self.path = path
         self.reason = reason
+
+
+def remove_files(paths: Iterable[str]) -> None:
+    """Delete those of ``paths`` that exist."""
+    for path in paths:
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(path)
 
 
 def env_name(env_id: str) -> str:
@@ -233,27 +228,22 @@ def run_ids(log_folder: str, algo: str, env_id: str) -> list[int]:
 
 def new_run_dir(log_folder: str, algo: str, env_id: str) -> str:
     """
-    Create the folder of a new run, with the next free run id, and return it.
-
-    The folder is claimed with ``os.mkdir``, which fails if it exists: of runs started at the same time into
-    one log folder, each gets its own folder (the next id is tried until one is free).
+    Create the folder of a new run with the next free run id (claimed with ``os.mkdir``, so that runs started at
+    once into one log folder each get their own), and return it.
 
     :param log_folder: The log folder
     :param algo: The algorithm's name
     :param env_id: The environment id
     """
     os.makedirs(os.path.join(log_folder, algo), exist_ok=True)
-    run_id = 1
-    while True:
+    run_id = 0
+    while True:  # the next id, until one is not claimed by another run (or a file)
         ids = run_ids(log_folder, algo, env_id)
-        run_id = max(run_id, (ids[-1] if ids else 0) + 1)
+        run_id = max(run_id + 1, (ids[-1] if ids else 0) + 1)
         run_dir = os.path.join(log_folder, algo, f"{env_name(env_id)}_{run_id}")
-        try:
+        with contextlib.suppress(FileExistsError):
             os.mkdir(run_dir)
-        except FileExistsError:
-            run_id += 1  # another run claimed this id (or a file has this name): try the next one
-            continue
-        return run_dir
+            return run_dir
 
 
 def latest_run_dir(log_folder: str, algo: str, env_id: str) -> str | None:
@@ -277,8 +267,7 @@ class Checkpoint:
     :param model: The model zip
     :param replay_buffer: The replay buffer pickle (off-policy algorithms)
     :param vecnormalize: The VecNormalize statistics pickle (runs with ``normalize``)
-    :param continuation: What an exact resume needs (:mod:`sb3_adc.experiment.continuation`; absent where none
-        is exact)
+    :param continuation: What an exact resume needs (:mod:`sb3_adc.experiment.continuation`), where one is
     :param manifest: The size and SHA-256 of each of the others (:mod:`sb3_adc.experiment.manifest`), written last
     """
 
@@ -296,9 +285,7 @@ class Checkpoint:
 
     def remove(self) -> None:
         """Delete the checkpoint's files that exist."""
-        for path in self.files:
-            if os.path.exists(path):
-                os.remove(path)
+        remove_files(self.files)
 
 
 @dataclass(frozen=True)
@@ -346,25 +333,13 @@ class RunLayout:
     def final_evaluation(self) -> str:
         return os.path.join(self.params_dir, "final_evaluation.json")
 
-    def monitor_file(self, rank: int) -> str:
-        """
-        The monitor CSV of one training environment (SB3's ``Monitor`` adds ``.monitor.csv``).
-
-        :param rank: The environment's index
-        """
-        return os.path.join(self.run_dir, str(rank))
-
     def monitor_files(self) -> list[str]:
         """The existing monitor CSVs, by environment index."""
         files = glob.glob(os.path.join(glob.escape(self.run_dir), "*.monitor.csv"))
         return sorted(files, key=lambda path: int(os.path.basename(path).split(".")[0]))
 
     def checkpoint(self, timesteps: int) -> Checkpoint:
-        """
-        The files of the checkpoint at a timestep.
-
-        :param timesteps: The timestep
-        """
+        """The files of the checkpoint at a timestep."""
 
         def path(kind: str, extension: str) -> str:
             return os.path.join(self.run_dir, f"{CHECKPOINT_PREFIX}_{kind}{timesteps}_steps.{extension}")
@@ -380,12 +355,9 @@ class RunLayout:
 
     def checkpoints(self) -> list[Checkpoint]:
         """The checkpoints present, oldest first."""
-        steps = []
-        for name in os.listdir(self.run_dir) if os.path.isdir(self.run_dir) else []:
-            match = _CHECKPOINT_PATTERN.match(name)
-            if match:
-                steps.append(int(match.group(1)))
-        return [self.checkpoint(timesteps) for timesteps in sorted(steps)]
+        names = os.listdir(self.run_dir) if os.path.isdir(self.run_dir) else []
+        matches = [_CHECKPOINT_PATTERN.match(name) for name in names]
+        return [self.checkpoint(steps) for steps in sorted(int(match.group(1)) for match in matches if match)]
 
     def is_finished(self) -> bool:
         """Whether the run completed (its final evaluation is written last)."""

@@ -1,19 +1,10 @@
 """
-The experiment engine: the RL Zoo's ``ExperimentManager`` running one sb3-adc run.
-
-:class:`RunManager` follows the Zoo's life cycle (``setup_experiment`` reads and preprocesses the
-hyperparameters, creates the log folder, the callbacks, the environments and the model; then ``learn`` and
-``save_trained_model``) and fills its hooks with what the Zoo lacks:
-
-- hyperparameters resolved by :mod:`sb3_adc.config` (validated, nothing ``eval``'d or imported by name);
-- resume: the Zoo's "continue from a zip" (``-i``) also loads a checkpoint of the run itself, with its replay
-  buffer, ``VecNormalize`` statistics, evaluations so far and its continuation (:mod:`sb3_adc.experiment.continuation`),
-  so that the resumed run is the run it continues; no file runs code unless trusted (:mod:`sb3_adc.experiment.restore`);
-- checkpoints and evaluations written atomically, on the timestep count (:mod:`sb3_adc.experiment.callbacks`);
-- a checkpoint on Ctrl-C, an error naming the first NaN or inf, and a final evaluation of its own seeds.
-
-``sb3-adc train`` (:func:`sb3_adc.experiment.train`, :func:`~sb3_adc.experiment.resume`), the benchmark grids,
-the tuning trials and ``python -m sb3_adc.zoo train`` all run through it.
+The experiment engine: :class:`RunManager`, the RL Zoo's ``ExperimentManager`` (its life cycle: ``setup_experiment``,
+``learn``, ``save_trained_model``) with hooks for what the Zoo lacks: hyperparameters resolved safely by
+:mod:`sb3_adc.config`; exact resume from the run's own checkpoint (:mod:`sb3_adc.experiment.continuation`), no file
+running code unless trusted (:mod:`sb3_adc.experiment.restore`); checkpoints and evaluations written atomically on
+the timestep count (:mod:`sb3_adc.experiment.callbacks`); a checkpoint on Ctrl-C, an error at the first NaN or inf,
+and a final evaluation. Every ``sb3-adc train``, benchmark run and tuning trial runs through it.
 """
 
 from __future__ import annotations
@@ -26,24 +17,24 @@ from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from typing import Any
 
-import yaml
+import numpy as np
 from gymnasium import spaces
 from rl_zoo3.exp_manager import ExperimentManager
 from rl_zoo3.utils import ALGOS
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
 from tqdm import TqdmExperimentalWarning
 
-from sb3_adc.common.atomic import write_atomically
 from sb3_adc.config import ALGORITHMS, ExperimentConfig
 from sb3_adc.experiment.callbacks import CheckpointSaver, EvaluationHistory, PeriodicEvalCallback, StopRequested, save_model
 from sb3_adc.experiment.continuation import Continuation
 from sb3_adc.experiment.divergence import NonFiniteValue, NonFiniteWeights, TrainingDiverged, check_finite_weights
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
-from sb3_adc.experiment.evaluation import FinalEvaluation, evaluate_final
+from sb3_adc.experiment.evaluation import FinalEvaluation
 from sb3_adc.experiment.layout import Checkpoint, RunLayout
 from sb3_adc.experiment.restore import (
     CheckpointContents,
@@ -52,15 +43,13 @@ from sb3_adc.experiment.restore import (
     restore_records,
     saved_statistics,
 )
-from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings
+from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings, write_yaml
 
 
 def register_algorithms() -> None:
     """
-    Add sb3-adc's algorithms (:data:`~sb3_adc.config.algorithms.ALGORITHMS`) to the Zoo's ``ALGOS`` table, the
-    only way the Zoo takes algorithms: ``adc``, ``vanilla_ac``, ``ddpg`` as :class:`~sb3_adc.baselines.SplitRateDDPG`
-    (SB3's DDPG plus ``critic_learning_rate``, identical without it) and ``td3`` as
-    :class:`~sb3_adc.baselines.AveragedActorTD3` (SB3's TD3 plus ``actor_average_tau``, identical without it).
+    Add sb3-adc's algorithms (:data:`~sb3_adc.config.algorithms.ALGORITHMS`: ``adc``, ``vanilla_ac``, ``ddpg`` and
+    ``td3`` as SB3's plus an option each) to the Zoo's ``ALGOS`` table.
     """
     for name in ALGORITHMS.names():
         ALGOS[name] = ALGORITHMS.resolve(name, "sb3_adc.experiment.manager", "algo")  # type: ignore[assignment]
@@ -88,11 +77,9 @@ class RunManager(ExperimentManager):
     :param config: The resolved hyperparameters (the run's ``config.yml``)
     :param checkpoint: The checkpoint to resume from (``None``: a new run, or a run started again from scratch)
     :param callbacks: Callbacks called after the run's own, e.g. the pruning callback of a tuning trial
-    :param contents: The checkpoint's files, read already (by the check that chose it: each file is read once);
-        ``None``: read here
-    :param trust_model_file: Unpickle the model to continue (``-i``), its replay buffer and statistics, and the
-        checkpoint's files as SB3 does, which can run any code they hold (default: restricted unpicklers, which
-        refuse with :class:`~sb3_adc.common.safe_load.UnsafeModelFileError` a file that needs more)
+    :param contents: The checkpoint's files, read already (``None``: read here)
+    :param trust_model_file: Unpickle the model to continue (``-i``) and the checkpoint's files as SB3 does, which can
+        run any code they hold (default: restricted unpicklers, which raise ``UnsafeModelFileError`` for more)
     """
 
     def __init__(
@@ -145,9 +132,8 @@ class RunManager(ExperimentManager):
         self.eval_env: VecEnv | None = None
         self.continuation: Continuation | None = None
 
-    # --- hyperparameters: resolved by sb3_adc.config, so the Zoo receives Python objects ---
-
     def read_hyperparameters(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Resolved by :mod:`sb3_adc.config`: the Zoo receives Python objects."""
         saved = OrderedDict(sorted(self.experiment.saved.items()))
         return dict(saved), saved
 
@@ -173,17 +159,14 @@ class RunManager(ExperimentManager):
             hyperparams["action_noise"] = self.experiment.make_action_noise(env.action_space)
         return hyperparams
 
-    # --- the run's folder, callbacks and environments ---
-
     def create_log_folder(self) -> None:
         """
-        A new run writes ``config.yml`` and ``args.yml`` first, so that it can be resumed from the moment its
-        folder exists; a resumed run keeps the evaluations and episodes up to its checkpoint.
+        A new run writes ``config.yml`` and ``args.yml`` first (resumable from then on); a resumed run keeps the
+        evaluations and episodes up to its checkpoint.
         """
+        super().create_log_folder()  # the Zoo's: makes the params folder
         if self.checkpoint is None and not os.path.isfile(self.layout.args):
-            os.makedirs(self.layout.params_dir, exist_ok=True)
-            text = yaml.safe_dump(self.experiment.saved, sort_keys=True)
-            write_atomically(self.layout.config, lambda stream: stream.write(text))
+            write_yaml(self.layout.config, self.experiment.saved)
             self.settings.save(self.layout.args)
         restore_records(self.layout, self.checkpoint, self.experiment.n_envs)
 
@@ -203,9 +186,8 @@ class RunManager(ExperimentManager):
 
     def create_envs(self, n_envs: int, eval_env: bool = False, no_log: bool = False) -> VecEnv:
         """
-        Training environments write one monitor CSV each (appended to on resume, the step count continuing) and
-        are seeded ``seed, seed + 1, ...``; evaluation environments are seeded from ``seed + EVAL_SEED_OFFSET``
-        and never update the ``VecNormalize`` statistics.
+        Training environments (seeded ``seed, seed + 1, ...``) write one monitor CSV each, appended to on resume;
+        evaluation environments are seeded from ``seed + EVAL_SEED_OFFSET`` and never update ``VecNormalize``.
 
         :param n_envs: Number of environments
         :param eval_env: Evaluation environments rather than training ones
@@ -236,12 +218,8 @@ class RunManager(ExperimentManager):
 
     def _load_pretrained_agent(self, hyperparams: dict[str, Any], env: VecEnv) -> BaseAlgorithm:
         """
-        Resume from the run's checkpoint (the model with its replay buffer, and its continuation, restored in
-        :meth:`learn`; a checkpoint without one goes on from a new random stream), or continue
-        training a saved model (``-i``) as the Zoo does: its policy and weights, the run's other hyperparameters,
-        the replay buffer saved with it (the Zoo's ``replay_buffer.pkl``, or a checkpoint's own), and a timestep
-        count starting at 0, so the run trains ``n_timesteps`` more. No file runs code unless
-        ``trust_model_file`` (see the class).
+        Resume from the run's checkpoint (its continuation restored in :meth:`learn`; without one, a new random
+        stream), or continue a saved model (``-i``) as the Zoo does, with a safe load, from timestep 0.
         """
         algorithm_class: type[Any] = self.experiment.algorithm_class
         if self.contents is None:
@@ -261,7 +239,6 @@ class RunManager(ExperimentManager):
         if continuation is not None and continuation.timesteps == model.num_timesteps:
             self.continuation = continuation
         else:
-            # A new random stream: the resumed part does not replay the first part's draws.
             print(
                 f"The checkpoint at timestep {self.contents.checkpoint.timesteps} has no continuation (taken by a "
                 "second Ctrl-C, saved by an older version, or of a run whose state a continuation does not cover): the "
@@ -273,23 +250,18 @@ class RunManager(ExperimentManager):
     def _save_config(self, saved_hyperparams: dict[str, Any]) -> None:
         """Nothing more to write: ``create_log_folder`` wrote the configuration before anything could fail."""
 
-    # --- training, saving and the final evaluation ---
-
     def learn(self, model: BaseAlgorithm) -> None:
         """
-        Train to the budget. Ctrl-C stops the run after the step in progress with a checkpoint that a resume
-        continues exactly, and raises :class:`RunInterrupted`; a second Ctrl-C (or a ``KeyboardInterrupt`` from
-        elsewhere) stops it at once with a checkpoint of wherever it fell, resumed on a new random stream. A NaN
-        or inf raises :class:`~sb3_adc.experiment.divergence.TrainingDiverged`, naming the checkpoint left to
-        resume from.
+        Train to the budget. Ctrl-C stops after the step in progress with an exact checkpoint, a second Ctrl-C (or
+        another ``KeyboardInterrupt``) at once with an inexact one; both raise :class:`RunInterrupted`. A NaN or inf
+        raises :class:`~sb3_adc.experiment.divergence.TrainingDiverged`.
 
         :param model: The model of :meth:`setup_experiment`
         """
         if self.checkpoint is not None:
             print(f"Resuming {self.save_path} from timestep {self.checkpoint.timesteps} of {self.n_timesteps}")
         if self.tensorboard_log is None:
-            # SB3's default logger makes a new, empty ``SB3-<date>`` folder in the system's temporary directory for
-            # every model without TensorBoard logs; the run's own folder serves instead (the same output formats).
+            # SB3's default logger would make an empty ``SB3-<date>`` folder in the temporary directory.
             model.set_logger(configure(self.save_path, ["stdout"] if model.verbose >= 1 else []))
         if self.continuation is not None:
             self._continue(model)
@@ -303,30 +275,28 @@ class RunManager(ExperimentManager):
                     reset_num_timesteps=self.checkpoint is None,
                     progress_bar=self.show_progress,
                 )
+            return
         except StopRequested as stop:
-            print(f"\nInterrupted: checkpoint at timestep {stop.timesteps} saved; resuming continues the same run.")
-            print(f"Continue with: sb3-adc train --resume {self.save_path}")
-            raise RunInterrupted(self.save_path, stop.timesteps) from None
+            saved, note = stop.timesteps, "; resuming continues the same run"
         except KeyboardInterrupt:
             if self.saver.model is None:
                 self.saver.init_callback(model)
             try:
-                saved = self.saver.save(exact=False)
+                saved, note = self.saver.save(exact=False).timesteps, ""
             except NonFiniteWeights as error:
                 raise self._diverged(model, error) from None
-            print(f"\nInterrupted: checkpoint at timestep {saved.timesteps} saved.")
-            print(f"Continue with: sb3-adc train --resume {self.save_path}")
-            raise RunInterrupted(self.save_path, saved.timesteps) from None
         except (NonFiniteValue, NonFiniteWeights) as error:
             raise self._diverged(model, error) from None
         finally:
             if self.eval_env is not None:
                 self.eval_env.close()
+        print(f"\nInterrupted: checkpoint at timestep {saved} saved{note}.")
+        print(f"Continue with: sb3-adc train --resume {self.save_path}")
+        raise RunInterrupted(self.save_path, saved)
 
     def save_trained_model(self, model: BaseAlgorithm) -> None:
         """
-        The final model and ``VecNormalize`` statistics (atomically), after a last checkpoint with the replay
-        buffer, so that a finished run can be trained further (resume with a larger budget).
+        The final model and ``VecNormalize`` statistics (atomically), after a last checkpoint (to train further from).
 
         :param model: The trained model
         """
@@ -349,13 +319,28 @@ class RunManager(ExperimentManager):
         final_env = self.create_envs(1, eval_env=True)
         if model.get_vec_normalize_env() is not None and self.train_env is not None:
             sync_envs_normalization(self.train_env, final_env)
+        successes: list[bool] = []
+
+        def record_success(local: dict[str, Any], _: dict[str, Any]) -> None:  # as SB3's EvalCallback does
+            if local["done"] and local["info"].get("is_success") is not None:
+                successes.append(bool(local["info"]["is_success"]))
+
         try:
-            evaluation = evaluate_final(
-                model, final_env, self.settings.final_eval_episodes, self.algo, self.settings.env_id, self.seed
-            )
+            n = self.settings.final_eval_episodes
+            returns, lengths = evaluate_policy(model, final_env, n, return_episode_rewards=True, callback=record_success)
         finally:
             final_env.close()
             self._close()
+        episode_returns = [float(value) for value in np.atleast_1d(returns)]
+        evaluation = FinalEvaluation(
+            self.algo,
+            self.settings.env_id,
+            self.seed,
+            int(model.num_timesteps),
+            episode_returns,
+            [int(value) for value in np.atleast_1d(lengths)],
+            successes if len(successes) == len(episode_returns) else None,
+        )
         evaluation.save(self.layout.final_evaluation)
         print(evaluation.summary())
         return evaluation
@@ -370,15 +355,13 @@ class RunManager(ExperimentManager):
         return self.evaluate(model)
 
     def _continue(self, model: BaseAlgorithm) -> None:
-        """Restore the checkpoint's continuation: the environments where the run left them, the random generators
-        as they were, the step in progress stored and trained on."""
+        """Restore the checkpoint's continuation (:meth:`~sb3_adc.experiment.continuation.Continuation.restore`)."""
         assert self.continuation is not None
         assert self.checkpoint is not None
         assert self.train_env is not None
         assert isinstance(model, OffPolicyAlgorithm), "only off-policy checkpoints hold a continuation"
         self.continuation.restore(model, self.eval_env, max(self.n_timesteps - model.num_timesteps, 0))
-        if self.train_env.has_attr("set_total_steps"):
-            # The replay counted the steps of the episodes in progress again.
+        if self.train_env.has_attr("set_total_steps"):  # the replay counted the episodes' steps again
             self.train_env.env_method("set_total_steps", self.checkpoint.timesteps // self.experiment.n_envs)
 
     def _close(self) -> None:
@@ -386,7 +369,7 @@ class RunManager(ExperimentManager):
             self.train_env.close()
 
     def _diverged(self, model: BaseAlgorithm, error: NonFiniteValue | NonFiniteWeights) -> TrainingDiverged:
-        """The error that ends a run which met a NaN or inf: where, and which checkpoint is left to resume from."""
+        """The error that ends a run which met a NaN or inf."""
         self._close()
         timesteps = model.num_timesteps
         if isinstance(error, NonFiniteValue) and error.role == "training":

@@ -1,11 +1,7 @@
 """
 A checkpoint's manifest: the size and SHA-256 of each of its files, written after them, so that whether a checkpoint
-is intact is known without unpickling anything (:func:`manifest_damage`). It is an integrity check (against a disk
-that corrupts a file, or a file changed by hand), not a signature: whoever can write the run folder can rewrite the
-manifest too, and what the files hold is still read by the restricted unpicklers of
-:mod:`~sb3_adc.experiment.restore`, which refuse a planted file whatever its manifest says.
-
-Only what ``hashlib`` lacks is here: the list of files and the reading of the manifest with a bound on its size.
+is intact is known without unpickling anything (:func:`manifest_damage`). An integrity check, not a signature: the
+files are still read by the restricted unpicklers of :mod:`~sb3_adc.experiment.restore`.
 """
 
 from __future__ import annotations
@@ -49,12 +45,11 @@ def write_manifest(checkpoint: Checkpoint) -> None:
 
 def manifest_damage(checkpoint: Checkpoint) -> str | None:
     """
-    What the manifest finds wrong with a checkpoint's files (a file missing, of another size or another SHA-256,
-    or present but not listed), ``None`` if they are the files it lists. Nothing is unpickled.
+    What the manifest finds wrong with a checkpoint's files (missing, another size or SHA-256, not listed), ``None``
+    if they are the files it lists.
 
     :param checkpoint: The checkpoint
-    :raises FileNotFoundError: if it has no manifest (written before manifests, or cut between its model and its
-        manifest): only reading its files can tell
+    :raises FileNotFoundError: if it has no manifest (only reading its files can tell)
     """
     name = os.path.basename(checkpoint.manifest)
     if os.path.getsize(checkpoint.manifest) > MAX_MANIFEST_BYTES:

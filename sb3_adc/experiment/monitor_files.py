@@ -15,12 +15,8 @@ from sb3_adc.experiment.layout import DamagedFileError
 
 def read_monitor(path: str) -> pd.DataFrame:
     """
-    The episodes of a monitor CSV: columns ``r`` (return), ``l`` (length), ``t`` (seconds) and, for runs of
-    this package, ``total_steps`` (steps of that environment at the end of the episode). A last line cut short
-    (a run killed while writing it) is left out.
-
-    Not SB3's ``load_results``: it reads every monitor file of a folder into one frame, and keeps a line cut
-    short as a row of truncated numbers and missing values instead of dropping it.
+    The episodes of a monitor CSV: ``r`` (return), ``l`` (length), ``t`` (seconds), ``total_steps`` (sb3-adc's runs),
+    without a last line cut short (which SB3's ``load_results``, reading a whole folder, would keep).
 
     :param path: The ``*.monitor.csv`` file
     """
@@ -34,9 +30,8 @@ def read_monitor(path: str) -> pd.DataFrame:
 
 def truncate_monitor(path: str, steps: int) -> int:
     """
-    Drop the episodes that ended after ``steps`` steps of the environment (work lost since a checkpoint), and
-    a last line without its line end (an episode being written when the run was killed). The file is rewritten
-    atomically.
+    Drop the episodes that ended after ``steps`` steps of the environment, and a last line cut short, rewriting the
+    file atomically.
 
     :param path: The ``*.monitor.csv`` file
     :param steps: The environment's step count at the checkpoint
@@ -47,8 +42,7 @@ def truncate_monitor(path: str, steps: int) -> int:
         lines = stream.read().splitlines(keepends=True)
     if lines and not lines[-1].endswith("\n"):
         lines = lines[:-1]  # `Monitor` writes whole lines: a line without its end was cut short
-    if len(lines) < 2:
-        # Killed while `Monitor` wrote its header: no episode was recorded; write the header again.
+    if len(lines) < 2:  # killed while `Monitor` wrote its header: write it again
         header_line = "#" + json.dumps({"t_start": time.time()}) + "\n"
         columns_line = ",".join(("r", "l", "t", TOTAL_STEPS_KEY)) + "\r\n"
         write_atomically(path, lambda stream: stream.writelines([header_line, columns_line]))

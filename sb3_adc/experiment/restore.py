@@ -1,7 +1,6 @@
 """
-Restoring a run from its files without running code from them: a checkpoint of its own (:func:`read_checkpoint`),
-or a saved model to continue (the RL Zoo's ``-i``, :func:`load_trained_agent`) with the replay buffer and
-``VecNormalize`` statistics saved with it; and the run's records cut back to its checkpoint (:func:`restore_records`).
+Restoring a run without running code from its files: its checkpoint (:func:`read_checkpoint`) or a model to continue
+(the Zoo's ``-i``, :func:`load_trained_agent`), and its records cut back to the checkpoint (:func:`restore_records`).
 """
 
 from __future__ import annotations
@@ -31,8 +30,8 @@ from sb3_adc.common.safe_load import (
     safe_objects,
 )
 from sb3_adc.experiment.callbacks import EvaluationHistory
-from sb3_adc.experiment.continuation import Continuation
-from sb3_adc.experiment.layout import Checkpoint, DamagedFileError, RunLayout
+from sb3_adc.experiment.continuation import CONTINUATION_VERSION, Continuation
+from sb3_adc.experiment.layout import Checkpoint, DamagedFileError, RunLayout, remove_files
 from sb3_adc.experiment.manifest import manifest_damage
 from sb3_adc.experiment.monitor_files import truncate_monitor
 
@@ -44,14 +43,13 @@ class DamagedCheckpoint(ValueError):
 @dataclass
 class CheckpointContents:
     """
-    A checkpoint read by :func:`read_checkpoint`: what a resume loads, each file read once.
+    A checkpoint read by :func:`read_checkpoint`, each file once.
 
     :param checkpoint: Its files
-    :param model_objects: The ``custom_objects`` that load its model zip without unpickling anything
-        (:func:`~sb3_adc.common.safe_load.safe_objects`); ``None`` when trusted (SB3 unpickles the zip)
-    :param replay_buffer: Its replay buffer (``None`` where it has none)
-    :param vecnormalize: Its ``VecNormalize`` statistics, without environments (``None`` where it has none)
-    :param continuation: Its continuation (``None`` where it has none, or one of another version)
+    :param model_objects: The ``custom_objects`` that load its model zip without unpickling anything (``None``: trusted)
+    :param replay_buffer: Its replay buffer (``None``: none)
+    :param vecnormalize: Its ``VecNormalize`` statistics, without environments (``None``: none)
+    :param continuation: Its continuation (``None``: none, or one of another version)
     """
 
     checkpoint: Checkpoint
@@ -65,7 +63,7 @@ class CheckpointContents:
         The checkpoint's model, with its replay buffer.
 
         :param algorithm_class: The run's algorithm
-        :param kwargs: Keyword arguments of its ``load`` (``env``, ``device``, ...)
+        :param kwargs: Keyword arguments of its ``load``
         """
         with loading_model():
             model = algorithm_class.load(self.checkpoint.model, custom_objects=self.model_objects, **kwargs)
@@ -76,22 +74,15 @@ class CheckpointContents:
 
 def read_checkpoint(checkpoint: Checkpoint, trust: bool = False) -> CheckpointContents:
     """
-    Read a checkpoint to resume from, and tell whether it can be: its files must be those its manifest lists
-    (:func:`~sb3_adc.experiment.manifest.manifest_damage`, checked before anything is unpickled; a checkpoint written
-    before manifests, or cut before its manifest, has none); its model zip must open with intact members (CRC
-    checked) and an SB3 model's ``data``; its replay buffer, ``VecNormalize`` statistics and continuation, where
-    present, must unpickle. Nothing of the files runs code: the model's entries are built from the safe load's
-    allow-list (:func:`~sb3_adc.common.safe_load.safe_objects`), each pickle from the allow-list of what sb3-adc
-    writes in such a file (:data:`~sb3_adc.common.safe_load.REPLAY_BUFFER_GLOBALS`,
-    :data:`~sb3_adc.common.safe_load.VEC_NORMALIZE_GLOBALS`,
-    :data:`~sb3_adc.common.safe_load.CONTINUATION_GLOBALS`).
+    Read a checkpoint to resume from, and tell whether it can be: its files must be those of its manifest, where it
+    has one (checked before anything is unpickled), its model zip must pass its CRC check and hold ``data``, its
+    pickles must unpickle. No file runs code: the model's entries are built from the safe load's allow-list
+    (:func:`~sb3_adc.common.safe_load.safe_objects`), each pickle from that of what sb3-adc writes in it.
 
     :param checkpoint: The checkpoint
-    :param trust: Unpickle its files as SB3 does, which can run any code they hold (a run folder one trusts that
-        holds objects outside the allow-lists, e.g. a custom environment's in its infos)
+    :param trust: Unpickle its files as SB3 does, which can run any code they hold
     :raises DamagedCheckpoint: for a missing model zip or a damaged file, naming it
-    :raises UnsafeModelFileError: for a file that needs a class or function outside its allow-list (a file planted
-        in the run folder, or written by other code): refused, not run, and not taken for damage
+    :raises UnsafeModelFileError: for a file that needs a class or function outside its allow-list (not damage)
     """
     name = os.path.basename(checkpoint.model)
     if not os.path.isfile(checkpoint.model):
@@ -119,13 +110,13 @@ def read_checkpoint(checkpoint: Checkpoint, trust: bool = False) -> CheckpointCo
             raise
         except (OSError, zipfile.BadZipFile, KeyError, ValueError) as error:  # JSON and UTF-8 errors are ValueErrors
             raise DamagedCheckpoint(f"{name}: its `data` does not read ({type(error).__name__}: {error})") from None
-    globals_of = {
-        checkpoint.replay_buffer: (REPLAY_BUFFER_GLOBALS, "a replay buffer"),
-        checkpoint.vecnormalize: (VEC_NORMALIZE_GLOBALS, "VecNormalize statistics"),
-        checkpoint.continuation: (CONTINUATION_GLOBALS, "a continuation"),
+    pickles = {  # each file's allow-list, what it holds, and the class it must be
+        checkpoint.replay_buffer: (REPLAY_BUFFER_GLOBALS, "a replay buffer", ReplayBuffer),
+        checkpoint.vecnormalize: (VEC_NORMALIZE_GLOBALS, "VecNormalize statistics", VecNormalize),
+        checkpoint.continuation: (CONTINUATION_GLOBALS, "a continuation", object),
     }
     loaded: dict[str, Any] = {}
-    for path, (allowed, what) in globals_of.items():
+    for path, (allowed, what, _) in pickles.items():
         if not os.path.isfile(path):
             continue
         try:
@@ -134,23 +125,20 @@ def read_checkpoint(checkpoint: Checkpoint, trust: bool = False) -> CheckpointCo
             raise
         except Exception as error:  # unpickling a damaged file can raise almost anything
             raise DamagedCheckpoint(f"{os.path.basename(path)} does not unpickle ({type(error).__name__}: {error})") from None
+    for path, (_, what, kind) in pickles.items():  # once all are read: an unsafe file is refused, whatever the others
+        if loaded.get(path) is not None and not isinstance(loaded[path], kind):
+            raise DamagedCheckpoint(f"{os.path.basename(path)} holds no {what.removeprefix('a ')}")
     contents.replay_buffer = loaded.get(checkpoint.replay_buffer)
-    if contents.replay_buffer is not None and not isinstance(contents.replay_buffer, ReplayBuffer):
-        raise DamagedCheckpoint(f"{os.path.basename(checkpoint.replay_buffer)} holds no replay buffer")
-    statistics = loaded.get(checkpoint.vecnormalize)
-    if statistics is not None and not isinstance(statistics, VecNormalize):
-        raise DamagedCheckpoint(f"{os.path.basename(checkpoint.vecnormalize)} holds no VecNormalize statistics")
-    contents.vecnormalize = statistics
-    if checkpoint.continuation in loaded:
-        contents.continuation = Continuation.accept(loaded[checkpoint.continuation])
+    contents.vecnormalize = loaded.get(checkpoint.vecnormalize)
+    continuation = loaded.get(checkpoint.continuation)
+    if isinstance(continuation, Continuation) and getattr(continuation, "version", None) == CONTINUATION_VERSION:
+        contents.continuation = continuation
     return contents
 
 
 def checkpoint_damage(checkpoint: Checkpoint, trust: bool = False) -> str | None:
     """
-    Why a checkpoint cannot be resumed from, or ``None`` if it can: its manifest's check, which unpickles nothing
-    (:func:`~sb3_adc.experiment.manifest.manifest_damage`), or, for a checkpoint without one,
-    :func:`read_checkpoint`, whose content is dropped (a resume keeps it instead).
+    Why a checkpoint cannot be resumed from, or ``None`` if it can: its manifest's check, or :func:`read_checkpoint`.
 
     :param checkpoint: The checkpoint
     :param trust: As for :func:`read_checkpoint`
@@ -166,14 +154,7 @@ def checkpoint_damage(checkpoint: Checkpoint, trust: bool = False) -> str | None
 
 
 def _use_replay_buffer(model: OffPolicyAlgorithm, replay_buffer: object) -> None:
-    """
-    What SB3's ``load_replay_buffer`` (``truncate_last_traj=True``) does with the buffer it unpickled, for one read
-    already (by a restricted unpickler, or by a checkpoint's check): the model takes it, on the model's device.
-
-    :param model: The model
-    :param replay_buffer: The unpickled buffer
-    :raises ValueError: if it is not a replay buffer
-    """
+    """SB3's ``load_replay_buffer`` (``truncate_last_traj=True``) for a buffer unpickled already (safely)."""
     if not isinstance(replay_buffer, ReplayBuffer):
         raise ValueError(f"not a replay buffer: a {type(replay_buffer).__name__}")
     model.replay_buffer = replay_buffer
@@ -188,13 +169,7 @@ def _use_replay_buffer(model: OffPolicyAlgorithm, replay_buffer: object) -> None
 
 
 def _read_replay_buffer(path: str) -> ReplayBuffer:
-    """
-    A replay buffer saved with a model to continue, read with the restricted unpickler.
-
-    :param path: The pickle
-    :raises UnsafeModelFileError: for a file that needs more than a replay buffer holds
-    :raises ModelFileError: for a damaged file, naming it
-    """
+    """A replay buffer saved with a model to continue, read by the restricted unpickler (``ModelFileError``: damaged)."""
     try:
         replay_buffer = restricted_load(path, REPLAY_BUFFER_GLOBALS, "a replay buffer")
     except UnsafeModelFileError:
@@ -209,8 +184,7 @@ def _read_replay_buffer(path: str) -> ReplayBuffer:
 def saved_with(model_path: str, env_id: str) -> tuple[str | None, str | None]:
     """
     The replay buffer and ``VecNormalize`` statistics saved with a model (``None`` where absent): a checkpoint's
-    own (``rl_model_{t}_steps.zip``), else the RL Zoo's ``replay_buffer.pkl`` beside the model and
-    ``{env_name}/vecnormalize.pkl``.
+    own, else the RL Zoo's ``replay_buffer.pkl`` beside the model and ``{env_name}/vecnormalize.pkl``.
 
     :param model_path: The model file
     :param env_id: The environment id of its run
@@ -235,7 +209,7 @@ def load_trained_agent(
     :param path: The model file
     :param env_id: The environment id of its run
     :param trust: Unpickle the files as SB3 does
-    :param kwargs: Keyword arguments of its ``load`` (``env``, ``device``, the run's hyperparameters, ...)
+    :param kwargs: Keyword arguments of its ``load``
     :raises ValueError: for a replay buffer beside a model that has none
     """
     with model_file_errors(path, algorithm_class.__name__), loading_model():
@@ -256,8 +230,8 @@ def load_trained_agent(
 
 def saved_statistics(model_path: str, env_id: str, trust: bool = False) -> str | VecNormalize | None:
     """
-    The ``VecNormalize`` statistics saved with a model to continue (:func:`saved_with`): the file, which the
-    restricted unpickler reads, or, when trusted, the statistics unpickled (``None``: none).
+    The ``VecNormalize`` statistics saved with a model to continue (:func:`saved_with`): the file (read later by the
+    restricted unpickler) or, when trusted, the statistics unpickled (``None``: none).
 
     :param model_path: The model file (``""``: none, no statistics)
     :param env_id: The environment id of its run
@@ -282,15 +256,12 @@ def restore_records(layout: RunLayout, checkpoint: Checkpoint | None, n_envs: in
     :param n_envs: Its training environments (each monitor file holds its share of the timesteps)
     """
     if checkpoint is None:
-        for path in [layout.evaluations, layout.best_model, *layout.monitor_files()]:
-            if os.path.exists(path):
-                os.remove(path)
+        remove_files([layout.evaluations, layout.best_model, *layout.monitor_files()])
         return
     start = checkpoint.timesteps
     try:
         history = EvaluationHistory.load(layout.evaluations)
     except DamagedFileError as error:
-        # The evaluations up to the checkpoint cannot be recovered; the run goes on without them.
         print(f"{error}; the evaluations before timestep {start} are lost and the history restarts after it.")
         history = EvaluationHistory()
     history.until(start).save(layout.evaluations)

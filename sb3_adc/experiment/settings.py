@@ -27,10 +27,20 @@ TRACKED_TENSORBOARD_FOLDER = "tensorboard"
 GYM_MAKE_KEYWORDS = ("max_episode_steps", "disable_env_checker")
 
 
+def write_yaml(path: str, data: Any) -> None:
+    """
+    Write ``data`` as YAML (``yaml.safe_dump``, sorted keys), atomically.
+
+    :param path: The file
+    :param data: What to write
+    """
+    text = yaml.safe_dump(data, sort_keys=True)
+    write_atomically(path, lambda stream: stream.write(text))
+
+
 class SettingsError(ValueError):
     """
-    An invalid run setting. The message names the setting, its ``sb3-adc train`` option and the accepted values;
-    the command exits with status 2 before anything is written.
+    An invalid run setting (exit status 2, before anything is written), named with its option and accepted values.
 
     :param name: The setting (a field of :class:`TrainSettings`)
     :param problem: What is wrong and what is accepted
@@ -64,8 +74,7 @@ def check_device(device: str) -> None:
 
 def check_env_kwargs(env_id: str, env_kwargs: dict[str, Any], name: str = "env_kwargs") -> None:
     """
-    Make the environment once with ``env_kwargs``: a keyword it does not accept (or a value it rejects) is a
-    :class:`SettingsError` naming the keywords it accepts, raised before a run folder is created.
+    Make the environment once with ``env_kwargs``: a keyword or value it rejects is a :class:`SettingsError`.
 
     :param env_id: The environment id (registered)
     :param env_kwargs: Keyword arguments of ``gym.make``
@@ -121,26 +130,22 @@ class TrainSettings:
     :param eval_episodes: Deterministic episodes per periodic evaluation
     :param n_eval_envs: Environments of the periodic evaluations
     :param save_freq: Checkpoint every this many timesteps (``None``: at every evaluation; ``<= 0``: never)
-    :param keep_checkpoints: How many of the latest checkpoints to keep (older ones are deleted)
+    :param keep_checkpoints: How many of the latest checkpoints to keep
     :param final_eval_episodes: Deterministic episodes of the final evaluation
     :param vec_env: ``dummy`` (one process) or ``subproc`` (one process per training environment)
     :param device: PyTorch device (``auto``, ``cpu``, ``cuda``)
     :param verbose: SB3 verbosity (0: quiet, 1: training logs)
     :param progress_bar: Whether to show a progress bar
-    :param eval_env_kwargs: Keyword arguments of ``gym.make`` for the evaluation environments only (periodic and
-        final evaluations), replacing those keys of the training environments' ``env_kwargs``
-    :param tensorboard_log: TensorBoard log folder, passed to the model as ``tensorboard_log`` (the RL Zoo's
-        ``-tb``: runs are logged under ``{tensorboard_log}/{env_name}/{AlgorithmClass}_{N}``); ``None``: no
-        TensorBoard logs, or ``{log_folder}/tensorboard`` when tracking
-    :param trained_agent: A saved model (``.zip``) to continue training (the RL Zoo's ``-i``): the run starts
-        from its weights and, when one lies beside it, its replay buffer, and trains ``n_timesteps`` more
+    :param eval_env_kwargs: Keyword arguments replacing ``env_kwargs``' in the evaluation environments only
+    :param tensorboard_log: TensorBoard log folder (the RL Zoo's ``-tb``, logs in ``{env_name}/{AlgorithmClass}_{N}``);
+        ``None``: none, or ``{log_folder}/tensorboard`` when tracking
+    :param trained_agent: A saved model to train ``n_timesteps`` more, with its replay buffer (the RL Zoo's ``-i``)
     :param track: Track the run with Weights & Biases (the ``track`` extra), which uploads the TensorBoard logs
     :param wandb_project_name: The Weights & Biases project of a tracked run
     :param wandb_entity: The Weights & Biases entity (team) of a tracked run (``None``: the user's default)
     :param best_model_metric: What picks ``best_model.zip`` among the periodic evaluations: ``return`` (SB3's
-        ``EvalCallback``: the highest mean return) or ``success`` (the highest success rate, ties broken by the
-        return, every evaluation on the same episodes; the episodes must report ``info["is_success"]``). With
-        ``eval_env_kwargs`` on a validation split this is model selection on validation data.
+        highest mean return) or ``success`` (the highest success rate, ties broken by the return, every evaluation
+        on the same episodes, which must report ``info["is_success"]``)
     """
 
     algo: str
@@ -172,10 +177,7 @@ class TrainSettings:
     best_model_metric: str = "return"
 
     def __post_init__(self) -> None:
-        """
-        Check the settings (a value of the wrong type or out of range is a :class:`SettingsError`), and resolve
-        the TensorBoard folder of a tracked run.
-        """
+        """Check the settings (:class:`SettingsError`), and resolve the TensorBoard folder of a tracked run."""
         for name in ("eval_episodes", "n_eval_envs", "keep_checkpoints", "final_eval_episodes"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
@@ -199,8 +201,7 @@ class TrainSettings:
                 raise SettingsError(name, f"must be a non-empty string or None, got {value!r}")
         if not isinstance(self.wandb_project_name, str) or not self.wandb_project_name:
             raise SettingsError("wandb_project_name", f"must be a non-empty string, got {self.wandb_project_name!r}")
-        if self.track and self.tensorboard_log is None:
-            # Weights & Biases uploads what the model logs to TensorBoard (the RL Zoo logs to runs/ then).
+        if self.track and self.tensorboard_log is None:  # Weights & Biases uploads the TensorBoard logs
             self.tensorboard_log = os.path.join(self.log_folder, TRACKED_TENSORBOARD_FOLDER)
         if self.tensorboard_log is not None and importlib.util.find_spec("tensorboard") is None:
             raise SettingsError(
@@ -215,17 +216,16 @@ class TrainSettings:
         """
         The keyword arguments of the evaluation environments: ``env_kwargs`` with :attr:`eval_env_kwargs` applied.
 
-        :param env_kwargs: Those of the training environments (the resolved hyperparameters')
+        :param env_kwargs: Those of the training environments
         """
         return {**env_kwargs, **self.eval_env_kwargs}
 
     def check_env_kwargs(self, env_id: str, env_kwargs: dict[str, Any]) -> None:
         """
-        Make the environment once with the training and the evaluation keyword arguments (see
-        :func:`check_env_kwargs`), before a run folder is created.
+        :func:`check_env_kwargs` for the training and the evaluation keyword arguments.
 
         :param env_id: The environment id
-        :param env_kwargs: The training environments' keyword arguments (the resolved hyperparameters')
+        :param env_kwargs: The training environments' keyword arguments
         :raises SettingsError: if the environment rejects them
         """
         check_env_kwargs(env_id, env_kwargs, "env_kwargs")
@@ -258,18 +258,16 @@ class TrainSettings:
 
         :param path: The file
         """
-        text = yaml.safe_dump(dataclasses.asdict(self), sort_keys=True)
-        write_atomically(path, lambda stream: stream.write(text))
+        write_yaml(path, dataclasses.asdict(self))
 
     @classmethod
     def load(cls, path: str) -> TrainSettings:
         """
-        Read settings written by :meth:`save` (by this version or an earlier one, which lacks the newer settings).
+        Read settings written by :meth:`save` (of this version or an earlier one).
 
         :param path: The file
-        :raises ValueError: if the file does not hold settings: a
-            :class:`~sb3_adc.config.errors.HyperparamsError` for a file that is not YAML or is over a limit of
-            :mod:`sb3_adc.config.loader` (size, depth, aliases), a :class:`SettingsError` for an invalid value
+        :raises ValueError: if the file does not hold settings (a ``HyperparamsError`` for a file that is not YAML or
+            is over a limit of :mod:`sb3_adc.config.loader`, a :class:`SettingsError` for an invalid value)
         """
         data = read_yaml_file(path)
         names = {item.name for item in dataclasses.fields(cls)}
