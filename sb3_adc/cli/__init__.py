@@ -43,7 +43,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"sb3-adc {sb3_adc.__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="{train,enjoy,benchmark,experiment,plot}", required=True)
     for command in (train_command, enjoy_command, benchmark_command, experiment_command, plot_command):
-        command.add_parser(subparsers)
+        # Each module holds its options in PARSER (a parent), its --help texts and the function that runs it.
+        subparsers.add_parser(
+            command.__name__.rsplit(".", 1)[1].removesuffix("_command"),
+            parents=[command.PARSER],
+            help=command.HELP,
+            description=command.DESCRIPTION,
+            formatter_class=argparse.RawDescriptionHelpFormatter,  # examples and tables keep their lines
+        ).set_defaults(handler=command.run)
     return parser
 
 
@@ -89,38 +96,33 @@ def main(argv: Sequence[str] | None = None) -> int:
         CourseError,  # a course file the lidar course refuses (names the file, field and limit)
     )
     args = parser.parse_args(argv)
+    status = 2
     try:
         # A scheduler's SIGTERM (Slurm, Kubernetes) stops a run as Ctrl-C does: with a checkpoint, status 130.
         with sigterm_as_sigint():
             return int(args.handler(args))
     except user_errors as error:
-        print(f"sb3-adc {args.command}: error: {error}", file=sys.stderr)
-        return 2
+        message: object = error
     except ModuleNotFoundError as error:
         # A package of an extra the run needs (pybullet when making the lidar course, ray for --backend ray, ...).
-        missing = missing_extra(error)
-        if missing is None:
+        message = missing_extra(error)
+        if message is None:
             raise
-        print(f"sb3-adc {args.command}: error: {missing}", file=sys.stderr)
-        return 2
     except RunInterrupted:
         return 130
     except MemoryError as error:  # after the bounds of the options that size memory: a machine too small for the run
-        print(
-            f"sb3-adc {args.command}: error: out of memory ({error or 'MemoryError'}); the run needs more memory than "
-            "is free: lower buffer_size, batch_size, n_envs or the networks' sizes (policy_kwargs), or free memory",
-            file=sys.stderr,
+        message = (
+            f"out of memory ({error or 'MemoryError'}); the run needs more memory than is free: lower buffer_size, "
+            "batch_size, n_envs or the networks' sizes (policy_kwargs), or free memory"
         )
-        return 2
     except OSError as error:
         if error.errno not in FILE_SYSTEM_ERRNOS:
             raise
-        where = "" if error.filename is None else f"{error.filename}: "
-        print(f"sb3-adc {args.command}: error: {where}{error.strerror or error}", file=sys.stderr)
-        return 2
+        message = f"{'' if error.filename is None else f'{error.filename}: '}{error.strerror or error}"
     except (TrainingDiverged, NonFiniteValue) as error:  # NonFiniteValue: outside training (enjoy)
-        print(f"sb3-adc {args.command}: error: {error}", file=sys.stderr)
-        return 1
+        message, status = error, 1
+    print(f"sb3-adc {args.command}: error: {message}", file=sys.stderr)
+    return status
 
 
 __all__ = ["build_parser", "main"]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 from collections.abc import Callable
@@ -10,7 +11,7 @@ from typing import TypeVar
 
 from tqdm import tqdm
 
-from sb3_adc.cli.common import CommandError, add_command, apply_runtime_arguments, key_values
+from sb3_adc.cli.common import CommandError, apply_runtime_arguments, check_positive, key_values
 from sb3_adc.config import ALGORITHMS, check_env_id
 from sb3_adc.experiment.benchmark import INTERRUPTED, BenchmarkSettings, RunOutcome, run_benchmark
 
@@ -18,7 +19,6 @@ Result = TypeVar("Result")
 #: What a grid calls as each run finishes: (outcome, runs done, runs in total).
 Reporter = Callable[[RunOutcome, int, int], None]
 
-#: The line of ``sb3-adc benchmark`` in ``sb3-adc --help``.
 HELP = "train a grid of algorithms x environments x seeds in parallel (resumable), write tidy CSVs"
 DESCRIPTION = """\
 Train every algorithm on every environment with every seed, one run per process (local backend)
@@ -42,31 +42,6 @@ examples:
 """
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    """
-    Register the sub-command.
-
-    :param subparsers: The ``sb3-adc`` sub-parsers
-    """
-    parser = add_command(subparsers, "benchmark", HELP, DESCRIPTION, run)
-    parser.add_argument("--algos", nargs="+", required=True, choices=ALGORITHMS.names(), metavar="ALGO", help="algorithms")
-    parser.add_argument("--envs", nargs="+", required=True, metavar="ENV", help="environment ids")
-    seeds = parser.add_mutually_exclusive_group()
-    seeds.add_argument("--seeds", nargs="+", type=int, metavar="SEED", help="seeds (default: 0 1 2)")
-    seeds.add_argument("--n-seeds", type=int, help="use seeds 0 .. N-1")
-    parser.add_argument("-n", "--n-timesteps", type=int, default=None, help="budget of every run (default: each entry's)")
-    parser.add_argument("-f", "--log-folder", default="benchmark", help="folder of the runs and CSVs (default: benchmark)")
-    parser.add_argument("--conf-folder", default=None, help="folder with {algo}.yml files to use instead of the shipped ones")
-    parser.add_argument("-params", "--hyperparams", nargs="+", metavar="KEY:VALUE", help="overrides applied to every run")
-    parser.add_argument("--eval-freq", type=int, default=None, help="evaluate every K timesteps (default: 20 per run)")
-    parser.add_argument("--eval-episodes", type=int, default=5, help="episodes per evaluation (default: 5)")
-    parser.add_argument("--final-eval-episodes", type=int, default=10, help="episodes of the final evaluation (default: 10)")
-    add_backend_arguments(parser)
-    parser.add_argument("--device", default="cpu", help="PyTorch device of the runs (default: cpu)")
-    parser.add_argument("--num-threads", type=int, default=1, help=argparse.SUPPRESS)
-    parser.add_argument("--gym-packages", nargs="+", default=[], metavar="MODULE", help="modules registering environments")
-
-
 def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
     """
     ``--backend``, ``--workers`` and ``--address``: where the runs of a grid go (``benchmark`` and ``experiment``).
@@ -74,8 +49,27 @@ def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
     :param parser: The sub-command's parser
     """
     parser.add_argument("--backend", choices=["local", "ray"], default="local", help="local process pool or Ray tasks")
-    parser.add_argument("--workers", type=int, default=None, help="local backend: parallel processes (default: CPU count)")
-    parser.add_argument("--address", default=None, help="Ray backend: cluster address (default: start a local Ray)")
+    parser.add_argument("--workers", type=int, help="local backend: parallel processes (default: CPU count)")
+    parser.add_argument("--address", help="Ray backend: cluster address (default: start a local Ray)")
+
+
+PARSER = argparse.ArgumentParser(add_help=False)
+PARSER.add_argument("--algos", nargs="+", required=True, choices=ALGORITHMS.names(), metavar="ALGO", help="algorithms")
+PARSER.add_argument("--envs", nargs="+", required=True, metavar="ENV", help="environment ids")
+_seeds = PARSER.add_mutually_exclusive_group()
+_seeds.add_argument("--seeds", nargs="+", type=int, metavar="SEED", help="seeds (default: 0 1 2)")
+_seeds.add_argument("--n-seeds", type=int, help="use seeds 0 .. N-1")
+PARSER.add_argument("-n", "--n-timesteps", type=int, help="budget of every run (default: each entry's)")
+PARSER.add_argument("-f", "--log-folder", default="benchmark", help="folder of the runs and CSVs (default: benchmark)")
+PARSER.add_argument("--conf-folder", help="folder with {algo}.yml files to use instead of the shipped ones")
+PARSER.add_argument("-params", "--hyperparams", nargs="+", metavar="KEY:VALUE", help="overrides applied to every run")
+PARSER.add_argument("--eval-freq", type=int, help="evaluate every K timesteps (default: 20 per run)")
+PARSER.add_argument("--eval-episodes", type=int, default=5, help="episodes per evaluation (default: 5)")
+PARSER.add_argument("--final-eval-episodes", type=int, default=10, help="episodes of the final evaluation (default: 10)")
+add_backend_arguments(PARSER)
+PARSER.add_argument("--device", default="cpu", help="PyTorch device of the runs (default: cpu)")
+PARSER.add_argument("--num-threads", type=int, default=1, help=argparse.SUPPRESS)
+PARSER.add_argument("--gym-packages", nargs="+", default=[], metavar="MODULE", help="modules registering environments")
 
 
 def apply_grid_arguments(args: argparse.Namespace) -> None:
@@ -104,7 +98,6 @@ def run_with_progress(n_runs: int, grid: Callable[[Reporter], Result], name_runs
         configuration)
     :return: What ``grid`` returns; ``None`` after Ctrl-C, once the resume message is printed
     """
-    progress = tqdm(total=n_runs, unit="run")
 
     def report(outcome: RunOutcome, done: int, total: int) -> None:
         final = outcome.final
@@ -115,22 +108,10 @@ def run_with_progress(n_runs: int, grid: Callable[[Reporter], Result], name_runs
             progress.write(outcome.error)
         progress.update(1)
 
-    try:
+    with tqdm(total=n_runs, unit="run") as progress, contextlib.suppress(KeyboardInterrupt):
         return grid(report)
-    except KeyboardInterrupt:
-        progress.close()
-        print(f"\n{INTERRUPTED}", file=sys.stderr)
-        return None
-    finally:
-        progress.close()
-
-
-def _seeds(args: argparse.Namespace) -> list[int]:
-    if args.n_seeds is not None:
-        if args.n_seeds < 1:
-            raise CommandError(f"--n-seeds must be >= 1, got {args.n_seeds}")
-        return list(range(args.n_seeds))
-    return list(args.seeds) if args.seeds else [0, 1, 2]
+    print(f"\n{INTERRUPTED}", file=sys.stderr)
+    return None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -143,18 +124,16 @@ def run(args: argparse.Namespace) -> int:
     apply_grid_arguments(args)
     for env_id in args.envs:
         check_env_id(env_id)
+    if args.n_seeds is not None:
+        check_positive(args.n_seeds, "--n-seeds")
+    seeds = list(range(args.n_seeds)) if args.n_seeds is not None else args.seeds or [0, 1, 2]
+    same = ("log_folder", "n_timesteps", "conf_folder", "eval_freq", "eval_episodes", "final_eval_episodes", "device")
     settings = BenchmarkSettings(
         algos=list(dict.fromkeys(args.algos)),
         env_ids=list(dict.fromkeys(args.envs)),
-        seeds=list(dict.fromkeys(_seeds(args))),
-        log_folder=args.log_folder,
-        n_timesteps=args.n_timesteps,
+        seeds=list(dict.fromkeys(seeds)),
         overrides=key_values(args.hyperparams, "-params"),
-        conf_folder=args.conf_folder,
-        eval_freq=args.eval_freq,
-        eval_episodes=args.eval_episodes,
-        final_eval_episodes=args.final_eval_episodes,
-        device=args.device,
+        **{name: getattr(args, name) for name in same},
     )
     n_runs = len(settings.grid())
     print(

@@ -7,12 +7,17 @@ import os
 
 import numpy as np
 
-from sb3_adc.cli.common import CommandError, add_algo_argument, add_command, add_runtime_arguments, apply_runtime_arguments
-from sb3_adc.common.safe_load import UnsafeModelFileError
+from sb3_adc.cli.common import (
+    CommandError,
+    add_runtime_arguments,
+    apply_runtime_arguments,
+    check_positive,
+    refusing_unsafe_files,
+)
+from sb3_adc.config import ALGORITHMS
 from sb3_adc.experiment.enjoy import MODEL_CHOICES, default_seed, load_model, load_run, model_path, play, write_recording
 from sb3_adc.experiment.layout import env_name, latest_run_dir
 
-#: The line of ``sb3-adc enjoy`` in ``sb3-adc --help``.
 HELP = "play a trained model and print its returns; --gif/--video record a rollout"
 DESCRIPTION = """\
 Load a model trained by `sb3-adc train`, run episodes with it in the run's environment (same
@@ -25,43 +30,37 @@ examples:
 """
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    """
-    Register the sub-command.
-
-    :param subparsers: The ``sb3-adc`` sub-parsers
-    """
-    parser = add_command(subparsers, "enjoy", HELP, DESCRIPTION, run)
-    add_algo_argument(parser, required=False)
-    parser.add_argument("--env", help="environment id")
-    parser.add_argument("-f", "--log-folder", default="logs", help="log folder (default: logs)")
-    parser.add_argument("--exp-id", type=int, default=0, help="run id (default: 0, the latest run)")
-    parser.add_argument("--run-dir", help="the run's folder (instead of --algo, --env, --log-folder, --exp-id)")
-    parser.add_argument("--model", choices=MODEL_CHOICES, default="final", help="which model of the run (default: final)")
-    # The RL Zoo's enjoy spellings, for `python -m sb3_adc.zoo enjoy`.
-    parser.add_argument("--load-best", dest="model", action="store_const", const="best", help="the same as --model best")
-    parser.add_argument(
-        "--load-last-checkpoint",
-        dest="model",
-        action="store_const",
-        const="last-checkpoint",
-        help="the same as --model last-checkpoint",
-    )
-    parser.add_argument("--no-render", action="store_true", help="accepted for the RL Zoo: nothing is shown on screen anyway")
-    parser.add_argument("--deterministic", action="store_true", help="accepted for the RL Zoo: actions are deterministic")
-    parser.add_argument("-n", "--n-episodes", type=int, default=5, help="episodes to play (default: 5)")
-    parser.add_argument("--seed", type=int, default=None, help="environment seed (default: that of the run's evaluations)")
-    parser.add_argument("--stochastic", action="store_true", help="sample actions instead of deterministic ones")
-    parser.add_argument("--gif", metavar="PATH", help="record the first episode as a GIF")
-    parser.add_argument("--video", metavar="PATH", help="record the first episode as a video (.mp4; needs imageio-ffmpeg)")
-    parser.add_argument("--fps", type=int, default=30, help="frames per second of the recording (default: 30)")
-    parser.add_argument(
-        "--trust-model-file",
-        action="store_true",
-        help="unpickle the model file as SB3 does, which runs any code it holds (default: a safe load that builds "
-        "only known classes and refuses the rest)",
-    )
-    add_runtime_arguments(parser)
+PARSER = argparse.ArgumentParser(add_help=False)
+PARSER.add_argument("--algo", choices=ALGORITHMS.names(), help="algorithm")
+PARSER.add_argument("--env", help="environment id")
+PARSER.add_argument("-f", "--log-folder", default="logs", help="log folder (default: logs)")
+PARSER.add_argument("--exp-id", type=int, default=0, help="run id (default: 0, the latest run)")
+PARSER.add_argument("--run-dir", help="the run's folder (instead of --algo, --env, --log-folder, --exp-id)")
+PARSER.add_argument("--model", choices=MODEL_CHOICES, default="final", help="which model of the run (default: final)")
+# The RL Zoo's enjoy spellings, for `python -m sb3_adc.zoo enjoy`.
+PARSER.add_argument("--load-best", dest="model", action="store_const", const="best", help="the same as --model best")
+PARSER.add_argument(
+    "--load-last-checkpoint",
+    dest="model",
+    action="store_const",
+    const="last-checkpoint",
+    help="the same as --model last-checkpoint",
+)
+PARSER.add_argument("--no-render", action="store_true", help="accepted for the RL Zoo: nothing is shown on screen anyway")
+PARSER.add_argument("--deterministic", action="store_true", help="accepted for the RL Zoo: actions are deterministic")
+PARSER.add_argument("-n", "--n-episodes", type=int, default=5, help="episodes to play (default: 5)")
+PARSER.add_argument("--seed", type=int, help="environment seed (default: that of the run's evaluations)")
+PARSER.add_argument("--stochastic", action="store_true", help="sample actions instead of deterministic ones")
+PARSER.add_argument("--gif", metavar="PATH", help="record the first episode as a GIF")
+PARSER.add_argument("--video", metavar="PATH", help="record the first episode as a video (.mp4; needs imageio-ffmpeg)")
+PARSER.add_argument("--fps", type=int, default=30, help="frames per second of the recording (default: 30)")
+PARSER.add_argument(
+    "--trust-model-file",
+    action="store_true",
+    help="unpickle the model file as SB3 does, which runs any code it holds (default: a safe load that builds "
+    "only known classes and refuses the rest)",
+)
+add_runtime_arguments(PARSER)
 
 
 def _run_dir(args: argparse.Namespace) -> str:
@@ -85,16 +84,12 @@ def run(args: argparse.Namespace) -> int:
     :return: The exit status
     """
     apply_runtime_arguments(args)
-    if args.n_episodes < 1:
-        raise CommandError(f"-n/--n-episodes must be >= 1, got {args.n_episodes}")
-    if args.fps < 1:
-        raise CommandError(f"--fps must be >= 1, got {args.fps}")
+    check_positive(args.n_episodes, "-n/--n-episodes")
+    check_positive(args.fps, "--fps")
     settings, config, layout = load_run(_run_dir(args))
     path, statistics = model_path(layout, args.model)
-    try:
+    with refusing_unsafe_files():
         model = load_model(config, path, device=args.device, safe=not args.trust_model_file)
-    except UnsafeModelFileError as error:
-        raise CommandError(f"{error} (with --trust-model-file the file is unpickled: do so only if you trust it)") from error
     seed = default_seed(settings) if args.seed is None else args.seed
     print(f"Playing {path} ({settings.algo} on {settings.env_id}) for {args.n_episodes} episodes, seed {seed}")
     record = args.gif is not None or args.video is not None

@@ -7,13 +7,12 @@ import contextlib
 import os
 
 from sb3_adc.cli.benchmark_command import add_backend_arguments, apply_grid_arguments, run_with_progress
-from sb3_adc.cli.common import CommandError, add_command
+from sb3_adc.cli.common import CommandError
 from sb3_adc.config import check_env_id
 from sb3_adc.experiment.experiments import Experiment, read_experiment, run_experiment
 from sb3_adc.experiment.layout import FolderLock
 from sb3_adc.experiment.tuning_grid import run_tuning, summarise
 
-#: The line of ``sb3-adc experiment`` in ``sb3-adc --help``.
 HELP = "run an experiment file (configurations x environments x seeds), write its tables and figures"
 DESCRIPTION = """\
 Run the experiment a YAML file describes (its format: sb3_adc.experiment.experiments, and the files
@@ -35,25 +34,22 @@ examples:
 """
 
 
-#: What the holder of a results folder's lock may be doing, for the error of ``--report`` when it is in use.
-REPORT_ACTIVITY = "running the experiment or writing its report"
+PARSER = argparse.ArgumentParser(add_help=False)
+PARSER.add_argument("file", help="the experiment file (YAML)")
+_mode = PARSER.add_mutually_exclusive_group()
+_mode.add_argument("--report", action="store_true", help="only rewrite the summary and figures from its tables")
+_mode.add_argument(
+    "--tiny", action="store_true", help="a check: one seed, one environment, a few hundred steps, in a temporary folder"
+)
+add_backend_arguments(PARSER)
+PARSER.set_defaults(device="cpu", num_threads=1, gym_packages=[])
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    """
-    Register the sub-command.
-
-    :param subparsers: The ``sb3-adc`` sub-parsers
-    """
-    parser = add_command(subparsers, "experiment", HELP, DESCRIPTION, run)
-    parser.add_argument("file", help="the experiment file (YAML)")
-    mode = parser.add_mutually_exclusive_group()
-    mode.add_argument("--report", action="store_true", help="only rewrite the summary and figures from its tables")
-    mode.add_argument(
-        "--tiny", action="store_true", help="a check: one seed, one environment, a few hundred steps, in a temporary folder"
-    )
-    add_backend_arguments(parser)
-    parser.set_defaults(device="cpu", num_threads=1, gym_packages=[])
+def _report_lock(experiment: Experiment) -> contextlib.AbstractContextManager[object]:
+    """The results folder's lock, held by a run of the experiment too (a folder that does not exist: nothing to lock)."""
+    if not os.path.isdir(experiment.results):
+        return contextlib.nullcontext()
+    return FolderLock(experiment.results, "running the experiment or writing its report")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -72,11 +68,7 @@ def run(args: argparse.Namespace) -> int:
     if args.report:
         from sb3_adc.experiment.summary import write_report  # rliable: only the commands that need it import it
 
-        # The results folder's lock, which an invocation training the experiment holds too: a report cannot read
-        # tables half rewritten, nor write its files between a running experiment's. A folder that does not exist
-        # has no tables (the report says so) and nothing to lock.
-        lock = FolderLock(experiment.results, REPORT_ACTIVITY) if os.path.isdir(experiment.results) else None
-        with lock or contextlib.nullcontext():
+        with _report_lock(experiment):
             write_report(experiment, experiment.results, figures=experiment.figures)
         print(f"Wrote the summary and figures of {experiment.name} in {experiment.results}")
         return 0
@@ -115,8 +107,7 @@ def run_tuning_file(experiment: Experiment, args: argparse.Namespace) -> int:
     if args.backend != "local":
         raise CommandError("a tuning file runs on the local backend (--workers: each study's worker processes)")
     if args.report:
-        lock = FolderLock(experiment.results, REPORT_ACTIVITY) if os.path.isdir(experiment.results) else None
-        with lock or contextlib.nullcontext():
+        with _report_lock(experiment):
             summary, _ = summarise(experiment, experiment.results, experiment.seeds)
         print("\n".join(summary))
         return 0

@@ -12,7 +12,7 @@ import sys
 
 import pandas as pd
 
-from sb3_adc.cli.common import CommandError, add_command
+from sb3_adc.cli.common import CommandError, check_positive
 from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CSV
 from sb3_adc.experiment.layout import RunLayout
 from sb3_adc.experiment.results import (
@@ -33,7 +33,6 @@ CSV_ACCEPTS = (
     "sb3-adc train (e.g. logs/adc/Pendulum-v1_1, or its evaluations.npz) or a folder of such runs (e.g. logs)"
 )
 
-#: The line of ``sb3-adc plot`` in ``sb3-adc --help``.
 HELP = "learning curves, reward variance, IQM/mean, performance profiles, P(X > Y) with bootstrap CIs (rliable)"
 DESCRIPTION = """\
 Plot the results of `sb3-adc benchmark` with rliable statistics (95% stratified-bootstrap CIs):
@@ -58,27 +57,25 @@ examples:
 """
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    """
-    Register the sub-command.
+PARSER = argparse.ArgumentParser(add_help=False)
+PARSER.add_argument(
+    "--csv",
+    required=True,
+    help="evaluation curves written by sb3-adc benchmark (evaluations.csv, or its folder), or a run folder of "
+    "sb3-adc train, or a folder of runs",
+)
+PARSER.add_argument("--final-csv", help="final evaluations (default: final.csv next to --csv, else the last evaluations)")
+PARSER.add_argument("--episodes-csv", help="training episodes (default: episodes.csv next to --csv, if present)")
+PARSER.add_argument("-o", "--output-dir", help="where to write (default: a plots folder next to --csv)")
+PARSER.add_argument("--algos", nargs="+", metavar="ALGO", help="only these algorithms")
+PARSER.add_argument("--envs", nargs="+", metavar="ENV", help="only these environments")
+PARSER.add_argument("--reps", type=int, default=2000, help="bootstrap replications (default: 2000)")
+PARSER.add_argument("--window", type=int, default=10, help="episodes of the variance moving average (default: 10)")
+PARSER.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (default: 0)")
 
-    :param subparsers: The ``sb3-adc`` sub-parsers
-    """
-    parser = add_command(subparsers, "plot", HELP, DESCRIPTION, run)
-    parser.add_argument(
-        "--csv",
-        required=True,
-        help="evaluation curves written by sb3-adc benchmark (evaluations.csv, or its folder), or a run folder of "
-        "sb3-adc train, or a folder of runs",
-    )
-    parser.add_argument("--final-csv", help="final evaluations (default: final.csv next to --csv, else the last evaluations)")
-    parser.add_argument("--episodes-csv", help="training episodes (default: episodes.csv next to --csv, if present)")
-    parser.add_argument("-o", "--output-dir", help="where to write (default: a plots folder next to --csv)")
-    parser.add_argument("--algos", nargs="+", metavar="ALGO", help="only these algorithms")
-    parser.add_argument("--envs", nargs="+", metavar="ENV", help="only these environments")
-    parser.add_argument("--reps", type=int, default=2000, help="bootstrap replications (default: 2000)")
-    parser.add_argument("--window", type=int, default=10, help="episodes of the variance moving average (default: 10)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (default: 0)")
+#: The columns ``--final-csv`` and ``--episodes-csv`` need.
+_FINAL_NEEDS = ("algo", "env", "seed", "mean_return")
+_EPISODES_NEEDS = ("algo", "env", "seed", "episode", "return")
 
 
 def _read(path: str | None, default: str, required_columns: tuple[str, ...], option: str = "--csv") -> pd.DataFrame | None:
@@ -116,12 +113,8 @@ def _run_folders(folder: str) -> list[str]:
 
 def _read_runs(runs: list[str]) -> tuple[pd.DataFrame, pd.DataFrame | None, pd.DataFrame | None]:
     """
-    The evaluation, final and episode tables of run folders, read as :mod:`sb3_adc.experiment.benchmark` writes
-    them. Runs of the same algorithm, environment and seed (trained twice) are told apart by numbering the runs of
-    that pair instead (a note says so).
-
-    :param runs: The run folders
-    :return: The evaluations, and the final evaluations and episodes (``None`` where no run has any)
+    The evaluation, final and episode tables (``None`` where no run has any) of run folders, as the benchmark's.
+    Runs of an algorithm and environment with the same seed (trained twice) are numbered instead (a note says so).
     """
     evaluations: list[Row] = []
     finals: list[Row] = []
@@ -145,9 +138,7 @@ def _read_runs(runs: list[str]) -> tuple[pd.DataFrame, pd.DataFrame | None, pd.D
                 continue
             evaluations += evaluation_rows(layout, algo, seed)
             episodes += episode_rows(layout, algo, seed)
-            final = final_row(layout, algo, seed)
-            if final is not None:
-                finals.append(final)
+            finals += [row for row in [final_row(layout, algo, seed)] if row is not None]
     if not evaluations:
         raise CommandError(f"--csv: no evaluations in {', '.join(runs)}; {CSV_ACCEPTS}")
     return (
@@ -158,33 +149,27 @@ def _read_runs(runs: list[str]) -> tuple[pd.DataFrame, pd.DataFrame | None, pd.D
 
 
 def _read_inputs(args: argparse.Namespace) -> tuple[pd.DataFrame, pd.DataFrame | None, pd.DataFrame | None, str]:
-    """
-    The evaluations, final evaluations and episodes that ``--csv`` (and ``--final-csv``, ``--episodes-csv``) name,
-    and the folder the default output folder goes in.
-    """
+    """The tables that ``--csv``, ``--final-csv`` and ``--episodes-csv`` name, and the folder of the default output."""
     path = args.csv
     if os.path.basename(path) == "evaluations.npz" and os.path.isfile(path):
         path = os.path.dirname(os.path.abspath(path))  # a run's own evaluations: its run folder
+    if os.path.isdir(path) and not os.path.isfile(os.path.join(path, EVALUATIONS_CSV)):
+        runs = _run_folders(path)
+        if not runs:
+            raise CommandError(f"--csv: {path} holds neither {EVALUATIONS_CSV} nor runs; {CSV_ACCEPTS}")
+        evaluations, final, episodes = _read_runs(runs)
+        if args.final_csv:
+            final = _read(args.final_csv, "", _FINAL_NEEDS, "--final-csv")
+        if args.episodes_csv:
+            episodes = _read(args.episodes_csv, "", _EPISODES_NEEDS, "--episodes-csv")
+        return evaluations, final, episodes, path
     if os.path.isdir(path):
-        if os.path.isfile(os.path.join(path, EVALUATIONS_CSV)):
-            path = os.path.join(path, EVALUATIONS_CSV)
-        else:
-            runs = _run_folders(path)
-            if not runs:
-                raise CommandError(f"--csv: {path} holds neither {EVALUATIONS_CSV} nor runs; {CSV_ACCEPTS}")
-            evaluations, final, episodes = _read_runs(runs)
-            if args.final_csv:
-                final = _read(args.final_csv, "", ("algo", "env", "seed", "mean_return"), "--final-csv")
-            if args.episodes_csv:
-                episodes = _read(args.episodes_csv, "", ("algo", "env", "seed", "episode", "return"), "--episodes-csv")
-            return evaluations, final, episodes, path
+        path = os.path.join(path, EVALUATIONS_CSV)
     folder = os.path.dirname(os.path.abspath(path))
     evaluations_table = _read(path, path, EVALUATION_COLUMNS[:5])
     assert evaluations_table is not None
-    final_table = _read(args.final_csv, os.path.join(folder, FINAL_CSV), ("algo", "env", "seed", "mean_return"), "--final-csv")
-    episodes_table = _read(
-        args.episodes_csv, os.path.join(folder, EPISODES_CSV), ("algo", "env", "seed", "episode", "return"), "--episodes-csv"
-    )
+    final_table = _read(args.final_csv, os.path.join(folder, FINAL_CSV), _FINAL_NEEDS, "--final-csv")
+    episodes_table = _read(args.episodes_csv, os.path.join(folder, EPISODES_CSV), _EPISODES_NEEDS, "--episodes-csv")
     return evaluations_table, final_table, episodes_table, folder
 
 
@@ -202,12 +187,9 @@ def _warn_single_runs(final: pd.DataFrame) -> None:
 
 
 def _select(table: pd.DataFrame | None, args: argparse.Namespace) -> pd.DataFrame | None:
-    if table is None:
-        return None
-    if args.algos:
-        table = table[table["algo"].isin(args.algos)]
-    if args.envs:
-        table = table[table["env"].isin(args.envs)]
+    for column, chosen in (("algo", args.algos), ("env", args.envs)):
+        if table is not None and chosen:
+            table = table[table[column].isin(chosen)]
     return table
 
 
@@ -222,10 +204,8 @@ def run(args: argparse.Namespace) -> int:
     from sb3_adc.experiment.plots import plot_comparisons, plot_results
     from sb3_adc.experiment.statistics import last_evaluations
 
-    if args.reps < 1:
-        raise CommandError(f"--reps must be >= 1, got {args.reps}")
-    if args.window < 1:
-        raise CommandError(f"--window must be >= 1, got {args.window}")
+    check_positive(args.reps, "--reps")
+    check_positive(args.window, "--window")
     evaluations, final, episodes, folder = _read_inputs(args)
     evaluations = _select(evaluations, args)
     assert evaluations is not None
@@ -244,12 +224,7 @@ def run(args: argparse.Namespace) -> int:
     )
     compared = final if final is not None and not final.empty else last_evaluations(evaluations)
     _warn_single_runs(compared)
-    comparisons = plot_comparisons(
-        compared,
-        output_dir,
-        reps=args.reps,
-        seed=args.seed,
-    )
+    comparisons = plot_comparisons(compared, output_dir, reps=args.reps, seed=args.seed)
     outputs.figures += comparisons.figures
     outputs.tables += comparisons.tables
     with open(os.path.join(output_dir, "final_performance.md"), encoding="utf-8") as stream:
