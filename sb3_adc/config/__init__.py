@@ -1,7 +1,6 @@
 """
-RL-Zoo-format hyperparameter files, read safely (:mod:`sb3_adc.config.loader`): ``load_hyperparams("adc",
-"Pendulum-v1")`` reads the shipped ``adc.yml`` (or ``conf_file``) and returns an :class:`ExperimentConfig` whose values
-are Python objects; nothing in a file is ever executed.
+RL-Zoo-format hyperparameter files, read safely: ``load_hyperparams("adc", "Pendulum-v1")`` reads the shipped
+``adc.yml`` into an :class:`ExperimentConfig`; nothing in a file is ever executed.
 """
 
 from sb3_adc.config.algorithms import ALGORITHMS, get_algorithm

@@ -7,11 +7,8 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from sb3_adc.config.allowlists import AllowList
 from sb3_adc.config.errors import HyperparamsError
 
-#: ``--algo`` name -> algorithm class. ``ddpg`` is SB3's DDPG with an optional ``critic_learning_rate`` and averaged
-#: actor (:class:`~sb3_adc.baselines.SplitRateDDPG`), ``td3`` SB3's TD3 with an optional averaged actor
-#: (:class:`~sb3_adc.baselines.AveragedActorTD3`, ``policy_kwargs`` ``actor_average_tau``), both identical to SB3's
-#: without them; ``tqc`` and ``crossq`` are sb3-contrib's (the ``zoo`` or ``experiment`` extra). Add your own with
-#: ``ALGORITHMS.add("name", AlgorithmClass)`` (and a ``name.yml`` hyperparameter file).
+#: ``--algo`` name -> algorithm class (``ddpg``, ``td3``: SB3's with an optional averaged actor; ``tqc``, ``crossq``:
+#: sb3-contrib's). Add your own with ``ALGORITHMS.add("name", AlgorithmClass)`` and a ``name.yml`` file.
 ALGORITHMS = AllowList(
     "algorithm",
     {

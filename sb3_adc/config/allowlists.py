@@ -1,13 +1,11 @@
 """
-The names a hyperparameter file may refer to: every class a file can reach is listed here as
-``name -> "module:attribute"``, imported by this package only. Add your own from Python (not from a file) with
-:meth:`AllowList.add`, for example ``ENV_WRAPPERS.add("my_pkg.MyWrapper", MyWrapper)`` before calling the loader.
+The names a hyperparameter file may refer to (``name -> "module:attribute"``, imported on first use). Add your own from
+Python with :meth:`AllowList.add`, for example ``ENV_WRAPPERS.add("my_pkg.MyWrapper", MyWrapper)``.
 """
 
 from __future__ import annotations
 
 import pkgutil
-from collections.abc import Iterator
 
 from sb3_adc.config.errors import HyperparamsError
 
@@ -29,9 +27,6 @@ class AllowList:
 
     def __contains__(self, name: object) -> bool:
         return name in self._targets
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self.names())
 
     def names(self) -> list[str]:
         """The accepted names, sorted."""

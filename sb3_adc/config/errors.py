@@ -14,8 +14,7 @@ _SHORT_REPR.maxlevel, _SHORT_REPR.maxstring, _SHORT_REPR.maxother = 3, 60, 60
 
 def short_repr(value: Any) -> str:
     """
-    A bounded representation of ``value`` for an error message (at most 3 levels and a few elements of nested
-    collections, then :data:`MAX_SHOWN_CHARACTERS` characters), whose cost does not grow with a YAML alias bomb.
+    A bounded representation of ``value`` for an error message, whose cost does not grow with a YAML alias bomb.
 
     :param value: The value to show
     """
@@ -26,8 +25,7 @@ def short_repr(value: Any) -> str:
 
 class HyperparamsError(ValueError):
     """
-    A hyperparameter file or one of its values is invalid: the message names the source, the key and the offending
-    value or expression, then says what is accepted.
+    A hyperparameter file or value is invalid: the message names source, key and offending value, and what is accepted.
 
     :param source: Where the value comes from: a file path, optionally followed by ``[entry]``
         (for example ``hyperparams/adc.yml [Pendulum-v1]``), or ``command line``

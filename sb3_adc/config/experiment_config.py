@@ -48,10 +48,9 @@ class NoiseSpec:
         if std.ndim != 0 and std.shape != (n_actions,):
             raise ValueError(f"`noise_std` has {std.size} values, the action space has {n_actions} dimensions.")
         mean, sigma = np.zeros(n_actions), np.broadcast_to(std, (n_actions,)).copy()
-        if self.noise_type == "normal":
-            return NormalActionNoise(mean=mean, sigma=sigma)
-        if self.noise_type == "ornstein-uhlenbeck":
-            return OrnsteinUhlenbeckActionNoise(mean=mean, sigma=sigma)
+        if self.noise_type in ("normal", "ornstein-uhlenbeck"):
+            noise_class = NormalActionNoise if self.noise_type == "normal" else OrnsteinUhlenbeckActionNoise
+            return noise_class(mean=mean, sigma=sigma)
         epsilons: dict[str, Any] = {"initial_epsilon": self.epsilon_initial, "final_epsilon": self.epsilon_final}
         return EpsilonGaussianNoise(mean=mean, sigma=sigma, decay_steps=self.epsilon_decay_steps, **epsilons)
 
@@ -59,9 +58,7 @@ class NoiseSpec:
 @dataclass
 class ExperimentConfig:
     """
-    Everything one hyperparameter entry says, resolved into Python objects (by
-    :func:`~sb3_adc.config.loader.load_hyperparams` or :func:`~sb3_adc.config.loader.resolve_entry`, never by executing
-    configuration text).
+    One hyperparameter entry resolved into Python objects (by :func:`~sb3_adc.config.loader.load_hyperparams`).
 
     :param algo: The algorithm's name (``adc``, ``ddpg``, ...)
     :param env_id: The Gymnasium id of the environment
@@ -69,8 +66,7 @@ class ExperimentConfig:
     :param algorithm_class: The algorithm's class
     :param n_timesteps: Training budget (environment steps, all environments together)
     :param n_envs: Number of parallel training environments
-    :param model_kwargs: Keyword arguments of the algorithm's constructor (``policy`` included; without
-        ``env``, ``action_noise``, ``seed``, ``verbose``, ``device``, ``tensorboard_log``)
+    :param model_kwargs: Keyword arguments of the algorithm's constructor (``policy`` included, ``env`` not)
     :param env_kwargs: Keyword arguments of ``gym.make``
     :param env_wrappers: Wrapper classes applied to each environment, in order, with their keyword arguments
     :param normalize: ``VecNormalize`` keyword arguments, or ``None`` for no normalization

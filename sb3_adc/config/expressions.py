@@ -1,10 +1,7 @@
 """
-A restricted parser for the Python-like strings of RL-Zoo hyperparameter files (which the RL Zoo runs with ``eval``).
-
-It walks the syntax tree and accepts only literals (numbers with an optional sign, strings, ``True``, ``False``,
-``None``), lists, tuples and dicts of them, ``dict(key=value, ...)``, and the names of an allow-list
-(:data:`~sb3_adc.config.allowlists.EXPRESSION_NAMES`). Anything else is rejected with a
-:class:`~sb3_adc.config.errors.HyperparamsError` naming the source, the key and the offending expression.
+A restricted parser for the Python-like strings of RL-Zoo hyperparameter files (which the RL Zoo runs with ``eval``):
+literals (signed numbers, strings, booleans, ``None``), lists, tuples and dicts of them, ``dict(key=value, ...)`` and
+allow-listed names (:data:`~sb3_adc.config.allowlists.EXPRESSION_NAMES`); anything else is a HyperparamsError.
 """
 
 from __future__ import annotations
@@ -38,10 +35,7 @@ _NODE_DESCRIPTIONS: dict[type[ast.AST], str] = {
 
 def parse_expression(text: str, source: str, key: str, names: AllowList = EXPRESSION_NAMES) -> Any:
     """
-    Read a Python-like expression without executing it.
-
-    ``parse_expression("dict(net_arch=[64, 64], activation_fn=nn.Tanh)", "adc.yml", "policy_kwargs")``
-    returns ``{"net_arch": [64, 64], "activation_fn": torch.nn.Tanh}``.
+    Read a Python-like expression without executing it: ``"dict(net_arch=[64])"`` -> ``{"net_arch": [64]}``.
 
     :param text: The expression
     :param source: Where it was read (file and entry), for error messages
@@ -80,8 +74,7 @@ def parse_expression(text: str, source: str, key: str, names: AllowList = EXPRES
                 return -number if isinstance(node.op, ast.USub) else number
             raise reject(node, "a sign is only allowed before a number")
         if isinstance(node, (ast.List, ast.Tuple)):
-            elements = [evaluate(element) for element in node.elts]
-            return elements if isinstance(node, ast.List) else tuple(elements)
+            return (list if isinstance(node, ast.List) else tuple)(evaluate(element) for element in node.elts)
         if isinstance(node, ast.Dict):
             result: dict[Any, Any] = {}
             for key_node, value_node in zip(node.keys, node.values, strict=True):

@@ -1,9 +1,7 @@
 """
-Reading RL-Zoo-format hyperparameter files safely: one YAML file per algorithm (``adc.yml``, ...) whose top-level keys
-are environment ids and an optional ``default`` entry, whose keys apply to every environment unless its own entry sets
-them. Files are read within the bounds of :mod:`sb3_adc.config.yaml_files`; Python-like strings (``policy_kwargs:
-"dict(net_arch=[64, 64])"``) go through the restricted parser of :mod:`sb3_adc.config.expressions`: nothing from a
-file is executed or imported by name outside the allow-lists of :mod:`sb3_adc.config.allowlists`.
+Reading RL-Zoo-format hyperparameter files safely: one YAML file per algorithm (``adc.yml``, ...) mapping environment
+ids, and an optional ``default`` entry merged under each, to hyperparameters. Strings go through
+:mod:`sb3_adc.config.expressions`: nothing is executed, or imported outside :mod:`sb3_adc.config.allowlists`.
 """
 
 from __future__ import annotations
@@ -27,12 +25,8 @@ from sb3_adc.config.schema import ADC_POLICY_KEYS, EPSILON_NOISE_KEYS, entry_key
 from sb3_adc.config.validators import Validator
 from sb3_adc.config.yaml_files import MAX_FILE_BYTES, load_yaml_bounded, read_yaml_file
 
-#: The package holding the shipped hyperparameter files.
-HYPERPARAMS_PACKAGE = "sb3_adc.hyperparams"
-#: Sub-folder of HYPERPARAMS_PACKAGE with the ADC paper's hyperparameter tables (`-conf paper/adc`).
-PAPER_FOLDER = "paper"
-#: The entry merged under every environment's entry.
-DEFAULT_ENTRY = "default"
+# The package of the shipped files, its folder of the paper's tables (`-conf paper/adc`), the entry merged under all.
+HYPERPARAMS_PACKAGE, PAPER_FOLDER, DEFAULT_ENTRY = "sb3_adc.hyperparams", "paper", "default"
 #: Keys whose string values (in ``policy_kwargs`` and similar mappings) name a class of the allow-list.
 CLASS_VALUED_KWARGS = frozenset({"activation_fn", "features_extractor_class", "optimizer_class"})
 #: Keywords of ``VecNormalize`` accepted in ``normalize``.
@@ -43,7 +37,7 @@ def packaged_hyperparams_file(name: str) -> str:
     """
     Path of a shipped hyperparameter file (inside the installed package).
 
-    :param name: The file's name without ``.yml``: an algorithm's name, or ``paper/{algo}`` for the paper's tables
+    :param name: The file's name without ``.yml``: an algorithm's name, or ``paper/{algo}``
     """
     return str(resources.files(HYPERPARAMS_PACKAGE).joinpath(*f"{name}.yml".split("/")))
 
@@ -51,11 +45,10 @@ def packaged_hyperparams_file(name: str) -> str:
 def shipped_hyperparams_files() -> list[str]:
     """The names (without ``.yml``) of the hyperparameter files shipped with the package, ``paper/`` ones included."""
     folder = resources.files(HYPERPARAMS_PACKAGE)
-    names = [item.name[: -len(".yml")] for item in folder.iterdir() if item.name.endswith(".yml")]
-    paper = folder.joinpath(PAPER_FOLDER)
-    if paper.is_dir():
-        names += [f"{PAPER_FOLDER}/{item.name[: -len('.yml')]}" for item in paper.iterdir() if item.name.endswith(".yml")]
-    return sorted(names)
+    items = [("", item) for item in folder.iterdir()]
+    if (paper := folder.joinpath(PAPER_FOLDER)).is_dir():
+        items += [(f"{PAPER_FOLDER}/", item) for item in paper.iterdir()]
+    return sorted(prefix + item.name[: -len(".yml")] for prefix, item in items if item.name.endswith(".yml"))
 
 
 def find_hyperparams_file(conf_file: str) -> str:
@@ -78,13 +71,11 @@ def read_hyperparams_file(path: str) -> dict[str, Any]:
     Read a hyperparameter file: a YAML mapping of entry names (environment ids, ``default``) to mappings.
 
     :param path: The file
-    :raises HyperparamsError: if the file is missing, is not UTF-8 YAML within the limits of
-        :mod:`sb3_adc.config.yaml_files`, or lacks that structure
+    :raises HyperparamsError: if it is missing, not UTF-8 YAML within :mod:`sb3_adc.config.yaml_files`, or not that
     """
     if not os.path.isfile(path):
         raise HyperparamsError(path, None, "hyperparameter file not found")
-    content = read_yaml_file(path)
-    if content is None:
+    if (content := read_yaml_file(path)) is None:
         return {}
     if not isinstance(content, dict):
         raise HyperparamsError(path, None, f"expected a mapping of environment ids to entries, got {type(content).__name__}")
@@ -99,8 +90,7 @@ def read_hyperparams_file(path: str) -> dict[str, Any]:
 
 def select_entry(content: Mapping[str, Any], env_id: str, path: str) -> tuple[dict[str, Any], str]:
     """
-    The entry of an environment, with the ``default`` entry merged under it, and its source (``path [env_id]`` or
-    ``path [default]``).
+    The entry of an environment, ``default`` merged under it, and its source (``path [env_id]`` or ``path [default]``).
 
     :param content: The file's content (see :func:`read_hyperparams_file`)
     :param env_id: The environment id
@@ -119,8 +109,7 @@ def select_entry(content: Mapping[str, Any], env_id: str, path: str) -> tuple[di
 
 def parse_overrides(items: Sequence[str], source: str = "command line") -> dict[str, Any]:
     """
-    Parse ``key:value`` overrides (``-params``), each value read as YAML as if written ``key: value`` in the file:
-    ``learning_rate:0.001``, ``train_freq:[1,episode]``, ``policy_kwargs:"dict(net_arch=[64, 64])"``.
+    Parse ``key:value`` overrides (``-params``), each value read as YAML: ``train_freq:[1,episode]``.
 
     :param items: The ``key:value`` strings
     :param source: Where they come from, for error messages
@@ -181,9 +170,8 @@ def load_hyperparams(
 
 def apply_overrides(entry: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
     """
-    ``entry`` with the values of ``overrides`` (``-params``, a tuning trial's values, a benchmark's configuration).
-    An override that sets a ``noise_type`` other than ``epsilon-normal`` drops the entry's epsilon keys (as the RL
-    Zoo's ``-params noise_type:...`` replaces the noise); epsilon keys that the overrides give stay.
+    ``entry`` with the values of ``overrides``; one setting a ``noise_type`` other than ``epsilon-normal`` drops the
+    entry's epsilon keys (the RL Zoo's ``-params noise_type:...`` replaces the noise), not those the overrides give.
 
     :param entry: A hyperparameter entry
     :param overrides: The values replacing the entry's
@@ -196,8 +184,7 @@ def apply_overrides(entry: Mapping[str, Any], overrides: Mapping[str, Any]) -> d
 def _reject_unknown(given: Iterable[Any], accepted: Iterable[str], source: str, what: str, prefix: str = "") -> None:
     """Raise for the first name of ``given`` not ``accepted``, listing those and the closest ("did you mean")."""
     accepted = sorted(accepted)
-    unknown = sorted(set(given) - set(accepted))
-    if unknown:
+    if unknown := sorted(set(given) - set(accepted)):
         close = difflib.get_close_matches(str(unknown[0]), accepted, n=3, cutoff=0.6)
         suggestion = f"; did you mean {' or '.join(f'`{match}`' for match in close)}?" if close else ""
         raise HyperparamsError(source, f"{prefix}{unknown[0]}", f"unknown {what}: {', '.join(accepted)}{suggestion}")
@@ -222,9 +209,8 @@ def resolve_entry(
     values = {key: keys[key](value, source, key) for key, value in entry.items()}
     if n_timesteps is not None:
         values["n_timesteps"] = keys["n_timesteps"](n_timesteps, "command line", "n_timesteps")
-    for required in ("n_timesteps", "policy"):
-        if required not in values:
-            raise HyperparamsError(source, required, "required key missing")
+    if missing := [key for key in ("n_timesteps", "policy") if key not in values]:
+        raise HyperparamsError(source, missing[0], "required key missing")
     n_envs = int(values.get("n_envs", 1))
     noise = _resolve_noise(values, source, n_envs)
     model_kwargs: dict[str, Any] = {"policy": _resolve_policy(values["policy"], algorithm_class, source)}

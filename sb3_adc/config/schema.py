@@ -16,8 +16,7 @@ from sb3_adc.common.actor_average import ActorAverageTD3Policy, check_actor_aver
 from sb3_adc.config import validators as v
 from sb3_adc.config.errors import HyperparamsError
 
-#: The most environments of a run (``n_envs``): each one is a process with ``vec_env: subproc`` and holds a monitor
-#: file open, and operating systems allow a process 1024 open files by default.
+#: The most environments of a run (``n_envs``): each is a process (``vec_env: subproc``) holding a monitor file open.
 MAX_N_ENVS = 256
 #: The most transitions a replay buffer holds (``buffer_size``); :data:`MAX_REPLAY_BUFFER_BYTES` bounds its memory.
 MAX_BUFFER_SIZE = 100_000_000
@@ -51,8 +50,7 @@ EPSILON_NOISE_KEYS: dict[str, v.Validator] = {
     **dict.fromkeys(("epsilon_initial", "epsilon_final"), v.real(0.0, 1.0)),
 }
 
-#: ADC policy options accepted at the top level of an entry (merged into ``policy_kwargs``).
-#: The accepted values come from the critic (:mod:`sb3_adc.adc.policies`, which also checks how they combine).
+#: ADC policy options accepted at the top level of an entry (merged into ``policy_kwargs``; values from the critic's).
 ADC_POLICY_KEYS: dict[str, v.Validator] = {
     "n_intervals": v.checked_by(check_n_intervals, v.integer()),
     "aggregation": v.choice(*AGGREGATIONS),
@@ -97,36 +95,20 @@ LAYER_KEYS: dict[str, v.Validator] = {
 
 #: Constructor keywords set by the tooling (or by the noise keys), never by an entry.
 RESERVED_MODEL_KEYS = frozenset(
-    (
-        "self",
-        "policy",
-        "env",
-        "policy_kwargs",
-        "action_noise",
-        "seed",
-        "verbose",
-        "device",
-        "tensorboard_log",
-        "_init_setup_model",
-    )
-)
+    {"self", "policy", "env", "policy_kwargs", "action_noise", "seed", "verbose", "device", "tensorboard_log"}
+) | {"_init_setup_model"}
 
 
 def entry_keys(algorithm_class: type[BaseAlgorithm]) -> tuple[dict[str, v.Validator], dict[str, v.Validator], list[str]]:
     """
-    The keys an entry for this algorithm accepts, with their validators: :data:`EXPERIMENT_KEYS`, the constructor's
-    keywords (:data:`MODEL_KEYS` where the type is known, else any YAML scalar), the noise keys if it takes
-    ``action_noise``, and :data:`ADC_POLICY_KEYS` for ADC (or a subclass); the ``policy_kwargs`` keys checked when the
-    entry is read (:data:`LAYER_KEYS`, ADC's policy options for ADC, ``actor_average_tau`` where ``MlpPolicy`` keeps
-    an averaged actor; other keys are the policy's to check); and the constructor's keywords an entry may set.
+    The keys an entry accepts, with their validators (constructor keywords not in :data:`MODEL_KEYS` take any scalar);
+    the ``policy_kwargs`` keys checked on reading (others are the policy's to check); the constructor's keywords.
 
     :param algorithm_class: The algorithm
     """
     parameters = inspect.signature(algorithm_class.__init__).parameters.values()
-    keyword = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
-    constructor = [
-        parameter.name for parameter in parameters if parameter.name not in RESERVED_MODEL_KEYS and parameter.kind in keyword
-    ]
+    kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+    constructor = [param.name for param in parameters if param.kind in kinds and param.name not in RESERVED_MODEL_KEYS]
     accepted = {**EXPERIMENT_KEYS, **{name: MODEL_KEYS.get(name, v.scalar) for name in constructor}}
     if any(parameter.name == "action_noise" for parameter in parameters):
         accepted.update({**NOISE_KEYS, **EPSILON_NOISE_KEYS})

@@ -1,8 +1,4 @@
-"""
-Checks of single hyperparameter values: every validator takes ``(value, source, key)`` and returns the value in its
-canonical form (ints for counts, floats for rates, ...), or raises a :class:`~sb3_adc.config.errors.HyperparamsError`
-naming the source, the key and the accepted values.
-"""
+"""Validators: ``(value, source, key)`` -> the value in canonical form, or a HyperparamsError naming the accepted."""
 
 from __future__ import annotations
 
@@ -63,8 +59,7 @@ def _within(number: float | None, minimum: float | None, maximum: float | None, 
 
 def integer(minimum: int | None = None, allowed: tuple[int, ...] = (), maximum: int | None = None) -> Validator:
     """
-    An integer ``>= minimum`` and ``<= maximum`` (or one of ``allowed``); a float with an integer value (``1e5``)
-    is accepted.
+    An integer ``>= minimum`` and ``<= maximum`` (or one of ``allowed``); a float with an integer value (``1e5``) too.
 
     :param minimum: The smallest accepted value
     :param allowed: Values accepted besides the range (such as ``-1`` for "all")
@@ -111,8 +106,7 @@ mapping = _accepting(
 
 def layer_sizes(max_width: int, max_weights: int) -> Validator:
     """
-    Hidden layer sizes (``net_arch``): a list of integers from 1 to ``max_width``, or a mapping of such lists (SB3's
-    ``dict(pi=[...], qf=[...])``), whose consecutive layers hold at most ``max_weights`` weights in all.
+    Hidden layer sizes (``net_arch``): a list of integers from 1 to ``max_width``, or a mapping of such lists.
 
     :param max_width: The most units of a layer
     :param max_weights: The most weights between hidden layers (``sum(w[i] * w[i + 1])``) of each list
@@ -203,8 +197,7 @@ def optional(validator: Validator) -> Validator:
 
 def checked_by(check: Callable[[Any], None], canonical: Validator | None = None) -> Validator:
     """
-    A value accepted by ``check``, the validation function of the class that owns the option (for instance
-    :func:`sb3_adc.adc.intervals.check_n_intervals`), so that the files accept exactly what the class does.
+    A value accepted by ``check``, the check of the class owning the option, so files accept exactly what it does.
 
     :param check: Raises ``ValueError`` (or ``TypeError``) naming the accepted values for a value it refuses
     :param canonical: A validator applied first, for the value's canonical form (``integer()`` reads ``1e2`` as 100)

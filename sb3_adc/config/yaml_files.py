@@ -1,9 +1,6 @@
 """
-Bounded YAML: hyperparameter files, experiment files and a run's ``config.yml`` and ``args.yml`` are read with
-``yaml.safe_load`` semantics (no Python tags), duplicate keys rejected, and limits on size, nesting, aliases and the
-values the aliases expand to (an "alias bomb" of a few hundred bytes expands to billions), so that a small hostile
-file cannot exhaust memory or time. A file over a limit is rejected before anything is built from it, with a
-:class:`~sb3_adc.config.errors.HyperparamsError` naming the file and the limit.
+Bounded YAML: ``yaml.safe_load`` semantics, duplicate keys rejected, and limits on size, nesting, aliases and the values
+the aliases expand to (a few hundred bytes can expand to billions), so that a small hostile file cannot exhaust memory.
 """
 
 from __future__ import annotations
@@ -15,7 +12,7 @@ import yaml
 
 from sb3_adc.config.errors import HyperparamsError, short_repr
 
-#: Largest hyperparameter file read, in bytes (the shipped files are a few kB; PyYAML reads about 100 kB/s).
+#: Largest YAML file read, in bytes (the shipped files are a few kB; PyYAML reads about 100 kB/s).
 MAX_FILE_BYTES = 256 * 1024
 #: Deepest nesting of collections (mappings and lists) in a YAML document (an entry needs about 4).
 MAX_DEPTH = 32
@@ -32,8 +29,7 @@ class _YamlLimitExceeded(yaml.YAMLError):
 class _HyperparamsYamlLoader(yaml.SafeLoader):
     """``yaml.SafeLoader`` rejecting duplicate keys, and documents over a limit while composing them."""
 
-    _depth = 0  # class defaults, shadowed per instance on first change
-    _aliases = 0
+    _depth = _aliases = 0  # class defaults, shadowed per instance on first change
 
     def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node | None:
         at = f"line {self.peek_event().start_mark.line + 1}"
@@ -73,8 +69,7 @@ class _HyperparamsYamlLoader(yaml.SafeLoader):
 
 
 def _expanded_size(node: yaml.Node, sizes: dict[int, int]) -> int:
-    """Number of values under ``node`` with every alias expanded; shared nodes are counted once per use, computed
-    once (``sizes``), so the count costs as much as the document as written. The depth is bounded by MAX_DEPTH."""
+    """Number of values under ``node``, aliases expanded; each node's size is computed once (``sizes``)."""
     if id(node) not in sizes:
         children = node.value if isinstance(node, yaml.SequenceNode) else []
         if isinstance(node, yaml.MappingNode):
@@ -85,15 +80,13 @@ def _expanded_size(node: yaml.Node, sizes: dict[int, int]) -> int:
 
 def load_yaml_bounded(text: str, source: str, key: str | None = None, what: str = "file") -> Any:
     """
-    Read one YAML document with ``yaml.safe_load`` semantics, duplicate keys rejected, within :data:`MAX_DEPTH`,
-    :data:`MAX_ALIASES` and :data:`MAX_EXPANDED_VALUES` (the caller bounds the length).
+    Read one YAML document within the limits of this module (the caller bounds the length).
 
     :param text: The document
     :param source: Where it comes from (a file path, ``command line``), for error messages
     :param key: The hyperparameter key it is the value of, if any, for error messages
     :param what: What the document is (``file``, ``value``), for error messages
-    :raises HyperparamsError: if it is not valid YAML (or uses Python tags), or is over a limit (the message never
-        shows the document, whose representation may be huge)
+    :raises HyperparamsError: if it is not valid YAML (or uses Python tags), or is over a limit
     """
     loader = _HyperparamsYamlLoader(text)
     try:
@@ -116,8 +109,7 @@ def read_yaml_file(path: str) -> Any:
     with open(path, "rb") as stream:
         data = stream.read(MAX_FILE_BYTES + 1)
     if len(data) > MAX_FILE_BYTES:
-        limit = "MAX_FILE_BYTES of sb3_adc.config.yaml_files"
-        raise HyperparamsError(path, None, f"file larger than {MAX_FILE_BYTES} bytes ({limit})")
+        raise HyperparamsError(path, None, f"file larger than {MAX_FILE_BYTES} bytes (MAX_FILE_BYTES of {__name__})")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as error:
