@@ -1,7 +1,6 @@
 """
-How a benchmark's runs (:mod:`sb3_adc.experiment.benchmark`) are carried out: :func:`run_one` trains, resumes or
-skips one run and reads back its results; :func:`run_local` runs many in a pool of processes (Ctrl-C and SIGTERM
-turned into a checkpoint of each run in progress), :func:`run_ray` as Ray tasks.
+How a benchmark's runs are carried out: :func:`run_one` trains, resumes or skips one run and reads its results;
+:func:`run_local` runs many in a process pool (Ctrl-C and SIGTERM checkpoint runs in progress), :func:`run_ray` on Ray.
 """
 
 from __future__ import annotations
@@ -88,17 +87,15 @@ def run_one(spec: RunSpec, settings: BenchmarkSettings) -> RunOutcome:
         return RunOutcome(spec, "failed", error=traceback.format_exc(), log_folder=settings.log_folder)
 
 
-#: In a worker of the local pool: whether a run is in progress, and whether the worker was interrupted (Ctrl-C
-#: or SIGTERM), after which it starts no run.
+#: In a worker of the local pool: whether a run is in progress, and whether the worker was interrupted (no run starts).
 _IN_RUN = threading.Event()
 _WORKER_INTERRUPTED = threading.Event()
 
 
 def _init_worker(handle_signals: bool = False) -> None:
     """
-    One torch thread per process (one process per run). With ``handle_signals`` (the local pool, not Ray, which
-    stops its workers with SIGTERM itself): Ctrl-C and SIGTERM go to :func:`_interrupt_worker` (a scheduler such as
-    Slurm signals every process of a job; the parent passes on a SIGTERM it alone received, see :func:`_stop_pool`).
+    One torch thread per process (one process per run). With ``handle_signals`` (the local pool; Ray stops its workers
+    with SIGTERM itself): Ctrl-C and SIGTERM go to :func:`_interrupt_worker`.
     """
     import torch as th
 
@@ -110,9 +107,8 @@ def _init_worker(handle_signals: bool = False) -> None:
 
 def _interrupt_worker(signum: int, frame: FrameType | None) -> None:
     """
-    Ctrl-C or SIGTERM in a worker of the local pool: the run in progress stops as with Ctrl-C (its own SIGINT handler
-    saves a checkpoint) and the worker starts no other run. An idle worker only takes note (a worker that died would
-    break the pool, which then kills the others). A second SIGTERM is ignored (a second Ctrl-C stops the run at once).
+    Ctrl-C or SIGTERM in a local worker: the run in progress stops as with Ctrl-C (its SIGINT handler saves a
+    checkpoint), and no other run starts. An idle worker only takes note (a dead worker would break the pool).
     """
     if signum == signal.SIGTERM and _WORKER_INTERRUPTED.is_set():
         return  # a SIGTERM passed on by the parent after the scheduler's own (Slurm signals every process)
@@ -163,8 +159,7 @@ def run_local(jobs: Sequence[Job], workers: int) -> Iterator[RunOutcome]:
 def _stop_pool(pool: concurrent.futures.ProcessPoolExecutor, futures: Sequence[concurrent.futures.Future[Any]]) -> None:
     """
     After Ctrl-C or SIGTERM: no run starts, the runs in progress save a checkpoint and the workers exit. Ctrl-C (and
-    a Slurm SIGTERM) reaches every process of the group; a SIGTERM to this process alone (Kubernetes, ``kill PID``) is
-    passed on to the workers. An interrupted worker starts no run, so the queued runs end at once.
+    Slurm's SIGTERM) reaches the whole process group; a SIGTERM to this process alone (``kill PID``) is passed on.
     """
     from sb3_adc.experiment.training import sigterm_received
 
@@ -180,9 +175,8 @@ def _stop_pool(pool: concurrent.futures.ProcessPoolExecutor, futures: Sequence[c
 
 def run_ray(jobs: Sequence[Job], address: str | None = None) -> Iterator[RunOutcome]:
     """
-    Run the jobs as Ray tasks, one run per task (one CPU each); outcomes come as runs finish. Uses the Ray instance
-    this process is connected to, else ``ray.init(address)`` (``None`` starts a local one). The tasks return their
-    rows, so the tables are complete without a shared file system; to resume runs, put ``log_folder`` on one.
+    Run the jobs as Ray tasks (one CPU each); outcomes come as runs finish. Uses the connected Ray instance, else
+    ``ray.init(address)``. Tasks return their rows: no shared file system is needed, but resuming needs one.
 
     :param jobs: The runs, each with its grid's settings
     :param address: Address of the Ray cluster (``ray.init(address=...)``)

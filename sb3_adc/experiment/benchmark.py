@@ -1,10 +1,9 @@
 """
 Benchmark grids: algorithms x environments x seeds, one run each in ``{log_folder}/{algo}/{env_name}_seed{seed}/``,
-in parallel processes or Ray tasks (:mod:`sb3_adc.experiment.backends`). Re-running a grid skips finished runs, resumes
-interrupted ones and starts the others; a run on disk made with other settings is refused (:class:`RunSettingsMismatch`).
-``evaluations.csv``, ``episodes.csv`` and ``final.csv`` (:mod:`sb3_adc.experiment.results`) hold every finished run of
-the folder, ``invocations.json`` each invocation (:mod:`sb3_adc.experiment.invocations`). One invocation at a time holds
-the folder's :class:`~sb3_adc.experiment.layout.FolderLock` until its tables are written.
+in processes or Ray tasks (:mod:`~sb3_adc.experiment.backends`). A re-run skips finished runs, resumes interrupted ones
+and refuses runs on disk made with other settings (:class:`RunSettingsMismatch`). The folder's tables
+(:mod:`~sb3_adc.experiment.results`) hold all its finished runs, ``invocations.json`` each invocation
+(:mod:`~sb3_adc.experiment.invocations`); one invocation at a time holds the folder's lock until they are written.
 """
 
 from __future__ import annotations
@@ -29,9 +28,7 @@ from sb3_adc.experiment.results import EPISODE_COLUMNS, EVALUATION_COLUMNS, FINA
 from sb3_adc.experiment.settings import TrainSettings
 
 #: File names of the tables a benchmark writes in its log folder.
-EVALUATIONS_CSV = "evaluations.csv"
-EPISODES_CSV = "episodes.csv"
-FINAL_CSV = "final.csv"
+EVALUATIONS_CSV, EPISODES_CSV, FINAL_CSV = "evaluations.csv", "episodes.csv", "final.csv"
 INTERRUPTED = "Interrupted: finished runs are kept, running ones saved a checkpoint. Re-run the same command to continue."
 #: What the holder of a benchmark log folder's lock is doing, for the error of a second invocation.
 BENCHMARK_ACTIVITY = "running a benchmark in it (sb3-adc benchmark, an experiment or a benchmark script)"
@@ -64,7 +61,7 @@ class RunSettingsMismatch(ValueError):
 @dataclass(frozen=True)
 class RunSpec:
     """
-    One run of the grid.
+    One run of the grid: its algorithm, environment id and seed.
 
     :param algo: The algorithm's name
     :param env_id: The environment id
@@ -142,9 +139,8 @@ class BenchmarkSettings:
 
 def check_runs_on_disk(settings: BenchmarkSettings) -> None:
     """
-    Check every run's hyperparameters, and that the grid's runs already on disk were made with the grid's settings
-    (so that skipping or resuming them gives the runs asked for): their resolved hyperparameters (``config.yml``:
-    budget and overrides included) and their run settings (``args.yml``).
+    Check every run's hyperparameters, and that the grid's runs on disk were made with its settings (so that skipping
+    or resuming them gives the runs asked for): resolved hyperparameters (``config.yml``) and run settings (``args.yml``).
 
     :param settings: The grid
     :raises HyperparamsError: for invalid hyperparameters of a run
@@ -161,22 +157,18 @@ def check_runs_on_disk(settings: BenchmarkSettings) -> None:
             continue
         saved = read_yaml_file(layout.config)
         keys = _differences(saved if isinstance(saved, dict) else {}, yaml.safe_load(yaml.safe_dump(config.saved)))
-        keys += _differences(_compared_settings(TrainSettings.load(layout.args)), _compared_settings(asked))
+        keys += _differences(dataclasses.asdict(TrainSettings.load(layout.args)), dataclasses.asdict(asked), _NOT_COMPARED)
         if keys:
             differences[layout.run_dir] = keys
     if differences:
         raise RunSettingsMismatch(differences)
 
 
-def _compared_settings(settings: TrainSettings) -> dict[str, Any]:
-    return {key: value for key, value in dataclasses.asdict(settings).items() if key not in _NOT_COMPARED}
-
-
-def _differences(saved: dict[str, Any], asked: dict[str, Any]) -> list[str]:
+def _differences(saved: dict[str, Any], asked: dict[str, Any], ignored: set[str] | None = None) -> list[str]:
     missing = "(not set)"
     return [
         f"{key}: {saved.get(key, missing)!r} -> {asked.get(key, missing)!r}"
-        for key in sorted(set(saved) | set(asked))
+        for key in sorted((set(saved) | set(asked)) - (ignored or set()))
         if saved.get(key, missing) != asked.get(key, missing)
     ]
 
@@ -246,8 +238,8 @@ def run_benchmarks(
     report: Callable[[RunOutcome, int, int], None] | None = None,
 ) -> list[BenchmarkResult]:
     """
-    Run several grids in one pool of workers (which keeps every worker busy until the last run) and write each grid's
-    tables in its own log folder, also when some runs fail or on Ctrl-C: finished work is never lost.
+    Run several grids in one pool of workers (busy until the last run) and write each grid's tables in its own log
+    folder, also when runs fail or on Ctrl-C: finished work is never lost.
 
     :param grids: The grids (each its own ``log_folder``)
     :param backend: ``local`` (a process pool) or ``ray``
@@ -275,8 +267,7 @@ def run_benchmarks(
         return [write_tables(outcomes[folder], grid.log_folder) for grid, folder in zip(grids, folders, strict=True)]
 
     with contextlib.ExitStack() as locks:
-        # One invocation per log folder until its tables are written; the runs on disk are checked again under the
-        # locks, in case another invocation changed them since.
+        # One invocation per log folder until its tables are written; the runs on disk are checked again under it.
         for folder in sorted(folders):
             locks.enter_context(FolderLock(folder, BENCHMARK_ACTIVITY))
         for settings in grids:
@@ -300,8 +291,8 @@ def run_benchmarks(
 
 def write_tables(outcomes: list[RunOutcome], folder: str) -> dict[str, str]:
     """
-    Write the evaluation, episode and final tables of the outcomes and of the other finished runs in the folder (runs
-    of earlier grids: a smaller grid never drops their rows).
+    Write the evaluation, episode and final tables of the outcomes and of the folder's other finished runs (a smaller
+    grid never drops the rows of an earlier one).
 
     :param outcomes: The runs' outcomes
     :param folder: Where to write them (the benchmark's log folder)
@@ -316,11 +307,8 @@ def write_tables(outcomes: list[RunOutcome], folder: str) -> dict[str, str]:
             outcomes.append(RunOutcome.read(spec, "skipped", folder))
         except (DamagedFileError, OSError, ValueError) as error:
             warnings.warn(f"the results of {spec} are left out of the tables: {error}", stacklevel=2)
-    tables = {
-        EVALUATIONS_CSV: ([row for outcome in outcomes for row in outcome.evaluations], EVALUATION_COLUMNS),
-        EPISODES_CSV: ([row for outcome in outcomes for row in outcome.episodes], EPISODE_COLUMNS),
-        FINAL_CSV: ([outcome.final for outcome in outcomes if outcome.final is not None], FINAL_COLUMNS),
-    }
-    for name, (rows, columns) in tables.items():
-        write_table(rows, columns, os.path.join(folder, name))
-    return {name: os.path.join(folder, name) for name in tables}
+    paths = {name: os.path.join(folder, name) for name in (EVALUATIONS_CSV, EPISODES_CSV, FINAL_CSV)}
+    write_table([row for outcome in outcomes for row in outcome.evaluations], EVALUATION_COLUMNS, paths[EVALUATIONS_CSV])
+    write_table([row for outcome in outcomes for row in outcome.episodes], EPISODE_COLUMNS, paths[EPISODES_CSV])
+    write_table([outcome.final for outcome in outcomes if outcome.final is not None], FINAL_COLUMNS, paths[FINAL_CSV])
+    return paths

@@ -25,10 +25,9 @@ YAML reader: nothing in it is executed)::
     tuning: {trials: 6, objective: return}  # optional, one env: an Optuna study per configuration (tuning_grid.py)
 
 Paths are relative to the file's folder; ``hyperparams`` is a folder of ``{algo}.yml`` files, ``overrides`` are
-``-params``. Each configuration is a benchmark grid in ``{runs}/{config}/``, their tables merged with the
-configuration's name in the ``algo`` column. Test sets (``model: best``: each run's ``best_model.zip``) are scored
-after the training (:mod:`sb3_adc.experiment.test_sets`); ``diagnostics`` go to ``diagnostics/`` and
-``diagnostics_*.csv`` (:func:`~sb3_adc.experiment.summary.write_diagnostics`).
+``-params``. Each configuration is a grid in ``{runs}/{config}/``, its name in the merged tables' ``algo`` column.
+Test sets (``model: best``: each run's ``best_model.zip``) are scored after the training; ``diagnostics`` go to
+``diagnostics/`` and ``diagnostics_*.csv`` (:func:`~sb3_adc.experiment.summary.write_diagnostics`).
 """
 
 from __future__ import annotations
@@ -47,7 +46,7 @@ from sb3_adc.config.loader import read_yaml_file
 from sb3_adc.experiment import test_sets as scoring
 from sb3_adc.experiment.benchmark import BenchmarkSettings, RunOutcome, run_benchmarks
 from sb3_adc.experiment.layout import FolderLock
-from sb3_adc.experiment.test_sets import TestSet, TestSetError, is_int, read_test_sets
+from sb3_adc.experiment.test_sets import TestSet, is_int, read_test_sets
 from sb3_adc.experiment.tuning_grid import Tuning, read_tuning
 
 #: Keys of an experiment file and of one of its configurations.
@@ -183,8 +182,8 @@ class Experiment:
 
     def record(self, root: str) -> dict[str, Any]:
         """
-        The settings the results were made with, as ``metadata.json`` records them (paths relative to ``root``), with
-        every configuration's resolved entries (:meth:`resolved`), so that a test can see them change.
+        The settings of the results as ``metadata.json`` records them (paths relative to ``root``), with every
+        configuration's resolved entries (:meth:`resolved`, so that a test can see them change).
 
         :param root: The repository root
         """
@@ -294,13 +293,9 @@ def read_experiment(path: str) -> Experiment:
         _check_keys(diagnostics, DIAGNOSTICS_KEYS, path, "diagnostics")
         _require(len(envs) == 1, path, "diagnostics", "needs exactly one env (its evaluation rollouts run on it)")
         diagnostics = {"every": diagnostics.get("every", 1000), "episodes": diagnostics.get("episodes", 5)}
-        for key, value in diagnostics.items():
-            high = 10**9 if key == "every" else 1000
-            _require(is_int(value, 1, high), path, f"diagnostics.{key}", "must be an integer >= 1")
-    try:
-        test_sets = read_test_sets(data.get("test_sets"))
-    except TestSetError as error:
-        raise ExperimentError(path, error.key, error.problem) from None
+        for key, high in (("every", 10**9), ("episodes", 1000)):
+            _require(is_int(diagnostics[key], 1, high), path, f"diagnostics.{key}", "must be an integer >= 1")
+    test_sets = read_test_sets(data.get("test_sets"), path)
     experiment = Experiment(
         name=name,
         path=os.path.abspath(path),
@@ -378,8 +373,7 @@ def run_experiment(
 
 def repository_root(experiment: Experiment) -> str:
     """
-    The folder that recorded paths are relative to: the repository of ``benchmarks/experiments/x.yml``, else the
-    file's folder.
+    The folder recorded paths are relative to: the repository of ``benchmarks/experiments/x.yml``, else the file's.
 
     :param experiment: The experiment
     """

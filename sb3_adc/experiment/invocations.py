@@ -1,8 +1,6 @@
 """
-The record of the invocations that worked on a benchmark grid (a long grid is often trained by several: a session
-ends, Ctrl-C), so that the time they took is not lost: ``invocations.json`` in each grid's log folder, written by the
-invocation holding the folder's lock as it starts, as runs finish and on a heartbeat (:class:`InvocationJournal`), and
-gathered by :func:`read_invocations`.
+The invocations that worked on a benchmark grid (a long grid often takes several), so that their time is not lost:
+``invocations.json`` in each grid's log folder, written by :class:`InvocationJournal`, read by :func:`read_invocations`.
 """
 
 from __future__ import annotations
@@ -29,9 +27,9 @@ MAX_FILE_BYTES = 1_000_000
 
 class InvocationJournal:
     """
-    A context manager: one invocation's entry in ``invocations.json`` of each grid folder it works on: ``id``,
-    ``started`` (UTC), ``wall_time_s`` (so far), ``workers``, ``backend``, ``algos``, ``runs_in_grid``, ``runs`` (per
-    status, so far) and ``finished`` (``False`` until it returns: stopped by Ctrl-C or killed, it stays ``False``).
+    A context manager writing one invocation's entry in ``invocations.json`` of each grid folder it works on (as it
+    starts, as runs finish and on a heartbeat): ``id``, ``started`` (UTC), ``wall_time_s``, ``workers``, ``backend``,
+    ``algos``, ``runs_in_grid``, ``runs`` (per status) and ``finished`` (stays ``False`` after Ctrl-C or a kill).
 
     :param grids: Each grid's log folder with its algorithms and its number of runs
     :param workers: Worker processes (or the Ray backend's ``"cluster"``)
@@ -59,8 +57,7 @@ class InvocationJournal:
             grid = {"algos": sorted(set(algos)), "runs_in_grid": runs, "runs": dict.fromkeys(STATUSES, 0)}
             self.entries[folder] = {**entry, **grid, "finished": False}
         self._start = clock()
-        # The other invocations' entries, read once: the folder's lock keeps other writers out.
-        self._others: dict[str, list[dict[str, Any]]] = {}
+        self._others: dict[str, list[dict[str, Any]]] = {}  # read once: the folder's lock keeps other writers out
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._heartbeat = threading.Thread(target=self._beat, name="invocation-journal", daemon=True)

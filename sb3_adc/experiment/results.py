@@ -1,7 +1,5 @@
-"""
-Tidy tables of the results of runs, for benchmarks and plots: ``evaluations.csv`` (one row per run and periodic
-evaluation), ``episodes.csv`` (one row per run and training episode) and ``final.csv`` (one row per run).
-"""
+"""Tidy tables of runs' results: ``evaluations.csv`` (per run and evaluation), ``episodes.csv`` (per run and training
+episode) and ``final.csv`` (per run)."""
 
 from __future__ import annotations
 
@@ -32,9 +30,8 @@ def _run_keys(layout: RunLayout, algo: str, seed: int) -> Row:
 
 def evaluation_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
     """
-    The periodic evaluations of a run, one row each (columns :data:`EVALUATION_COLUMNS`). ``success_rate`` is the
-    share of the evaluation's episodes that ended with ``info["is_success"]`` (empty where the episodes report none),
-    the rate SB3's ``EvalCallback`` logs as ``eval/success_rate``.
+    The periodic evaluations of a run (columns :data:`EVALUATION_COLUMNS`); ``success_rate`` is SB3's
+    ``eval/success_rate`` (the share of episodes ending with ``info["is_success"]``; empty where none report it).
 
     :param layout: The run's paths
     :param algo: The algorithm's name
@@ -53,10 +50,8 @@ def evaluation_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
 
 def episode_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
     """
-    The training episodes of a run, in the order they ended (columns :data:`EPISODE_COLUMNS`). ``timesteps`` is the
-    run's timestep count when the episode ended (steps of its environment times the number of environments);
-    ``wall_time_s`` the seconds the run had been training then (the monitor's ``t``, evaluations included; see
-    :func:`training_seconds` for resumed runs).
+    The training episodes of a run, in the order they ended (columns :data:`EPISODE_COLUMNS`): ``timesteps`` (the
+    environment's steps times the number of environments) and ``wall_time_s`` (:func:`training_seconds`) at its end.
 
     :param layout: The run's paths
     :param algo: The algorithm's name
@@ -79,18 +74,15 @@ def episode_rows(layout: RunLayout, algo: str, seed: int) -> list[Row]:
 
 def training_seconds(monitor_times: np.ndarray) -> np.ndarray:
     """
-    Seconds of training at the end of each episode of one monitor file, across resumes: SB3's ``Monitor`` clock
-    starts again at zero in a resumed run, so each restart continues from the last episode recorded before it (the
-    lost work between that episode and the interruption is not counted).
+    Seconds of training (evaluations included) at the end of each episode of a monitor file, across resumes: SB3's
+    ``Monitor`` clock restarts at zero, so each restart continues from the last episode recorded before it.
 
     :param monitor_times: The monitor's ``t`` column, in file order
     """
     times = np.asarray(monitor_times, dtype=np.float64)
-    if times.size == 0:
-        return times
-    restarts = np.concatenate([[False], np.diff(times) < 0])
-    # A restart adds the time reached before it to every later episode.
-    return times + np.cumsum(np.where(restarts, np.concatenate([[0.0], times[:-1]]), 0.0))
+    previous = np.concatenate([[0.0], times[:-1]])
+    # A restart (the clock going back) adds the time reached before it to every later episode.
+    return times + np.cumsum(np.where(times < previous, previous, 0.0))
 
 
 def final_row(layout: RunLayout, algo: str, seed: int) -> Row | None:
@@ -111,8 +103,7 @@ def final_row(layout: RunLayout, algo: str, seed: int) -> Row | None:
 def read_table(path: str | os.PathLike[str]) -> pd.DataFrame:
     """
     Read a results table (CSV, or ``.csv.gz``) with its floats exactly as written: pandas' default parser can read
-    the shortest round-tripping representation back one unit in the last place off (0.925 -> 0.9249999999999999),
-    and a statistic then prints differently. Every script that reads tables back reads them here.
+    them one unit in the last place off (0.925 -> 0.9249999999999999), and a statistic then prints differently.
 
     :param path: The table
     :return: The table

@@ -1,15 +1,12 @@
 """
-Held-out test sets of an experiment (its file's ``test_sets``, :mod:`sb3_adc.experiment.experiments`): each finished
-run's final model (or ``best_model.zip``) drives deterministic episodes on settings it never trained on (the
-Procgen/MetaDrive protocol): ``gym.make`` keywords over the run's ``env_kwargs`` and ``layout_seeds`` (one episode per
-procedural layout, reset to it and seeded by it), ``courses`` (course files, ``episodes`` each, seeded 0, 1, ...) or
-neither (``episodes`` seeded 0, 1, ...). An episode succeeds when its last ``info["is_success"]`` is true.
-
-Tables in the results folder: ``test_episodes.csv`` (per episode: ``config``, ``env``, ``seed``, ``test_set``,
-``episode``, ``course``, ``success``, ``return``, ``length``, and on the lidar courses what a failed episode hit,
-``hit``, and whether the lidar had shown it in time, ``hit_unseen``, see :data:`SIGHTING`), ``test_runs.csv`` (per run
-and test set: :func:`run_rates`) and ``test_summary.{csv,md}`` (:func:`summary`). Scoring is resumable: the rows
-scored with a test set's current settings (``test_sets.json``) are kept.
+Held-out test sets of an experiment (its file's ``test_sets``): each finished run's final model (or
+``best_model.zip``) plays deterministic episodes on settings it never trained on (the Procgen/MetaDrive protocol):
+``env_kwargs`` over the run's, and ``layout_seeds`` (one episode per procedural layout, reset to and seeded by it),
+``courses`` (course files, ``episodes`` each, seeded 0, 1, ...) or neither. An episode succeeds when its last
+``info["is_success"]`` is true. Results: ``test_episodes.csv`` (per episode, with on the lidar courses what a failed
+episode hit and whether it was unseen, :data:`SIGHTING`), ``test_runs.csv`` (:func:`run_rates`) and
+``test_summary.{csv,md}`` (:func:`summary`). Scoring resumes: rows scored with a test set's settings (``test_sets.json``)
+are kept.
 """
 
 from __future__ import annotations
@@ -35,14 +32,6 @@ RUN_KEYS = ["config", "env", "seed"]
 #: A lidar course's failed episode hit an unseen obstacle when no ray met it in the scans from ``SIGHTING[1]`` to
 #: ``SIGHTING[0]`` steps before the contact (the last 0.5 m of driving are too late to avoid it).
 SIGHTING = (6, 10)
-
-
-class TestSetError(ValueError):
-    """A ``test_sets`` entry that cannot be scored: ``key`` names it (turned into an experiment file's error)."""
-
-    def __init__(self, key: str, problem: str) -> None:
-        super().__init__(f"{key}: {problem}")
-        self.key, self.problem = key, problem
 
 
 @dataclass(frozen=True)
@@ -78,39 +67,42 @@ def is_int(value: Any, low: int, high: int) -> bool:
     return isinstance(value, int) and not isinstance(value, bool) and low <= value <= high
 
 
-def read_test_sets(value: Any) -> dict[str, TestSet]:
+def read_test_sets(value: Any, path: str) -> dict[str, TestSet]:
     """
     The ``test_sets`` of an experiment file, checked.
 
     :param value: Test set name -> mapping of :data:`TEST_SET_KEYS` (``None``: none)
-    :raises TestSetError: naming the key of anything it gets wrong
+    :param path: The experiment file, named by the errors
+    :raises ExperimentError: naming the key of anything it gets wrong
     """
+    from sb3_adc.experiment.experiments import _require  # imported here: experiments imports this module
+
     if value is None:
         return {}
-    if not isinstance(value, Mapping) or not 0 < len(value) <= 16:
-        raise TestSetError("test_sets", "must map 1 to 16 names to test sets")
+    valid = isinstance(value, Mapping) and 0 < len(value) <= 16
+    _require(valid, path, "test_sets", "must map 1 to 16 names to test sets")
     sets = {}
     for name, spec in value.items():
         key = f"test_sets.{name}"
-        if not isinstance(name, str) or not isinstance(spec, Mapping) or set(spec) - set(TEST_SET_KEYS):
-            raise TestSetError(key, f"must be named by a string and map some of {', '.join(TEST_SET_KEYS)}")
+        valid = isinstance(name, str) and isinstance(spec, Mapping) and not set(spec) - set(TEST_SET_KEYS)
+        _require(valid, path, key, f"must be named by a string and map some of {', '.join(TEST_SET_KEYS)}")
         kwargs, layouts, courses = spec.get("env_kwargs") or {}, spec.get("layout_seeds"), spec.get("courses")
         episodes, model = spec.get("episodes", 1), spec.get("model", "final")
-        if not isinstance(kwargs, Mapping) or not all(isinstance(k, str) for k in kwargs):
-            raise TestSetError(f"{key}.env_kwargs", "must be a mapping of gym.make keywords")
+        valid = isinstance(kwargs, Mapping) and all(isinstance(k, str) for k in kwargs)
+        _require(valid, path, f"{key}.env_kwargs", "must be a mapping of gym.make keywords")
         if layouts is not None:
             bounds: Any = (layouts.get("start"), layouts.get("stop")) if isinstance(layouts, Mapping) else (None, None)
-            if not (is_int(bounds[0], 0, 2**31) and is_int(bounds[1], 0, 2**31) and 0 < bounds[1] - bounds[0] <= MAX_EPISODES):
-                raise TestSetError(f"{key}.layout_seeds", f"must be {{start: int, stop: int}}, 1 to {MAX_EPISODES} seeds")
-            layouts = (int(bounds[0]), int(bounds[1]))
-        if courses is not None and (layouts is not None or not isinstance(courses, list) or not courses):
-            raise TestSetError(f"{key}.courses", "must list course names, and not go with layout_seeds")
-        if courses is not None and not all(isinstance(course, str) and course for course in courses):
-            raise TestSetError(f"{key}.courses", "must list course names")
-        if not is_int(episodes, 1, MAX_EPISODES) or (layouts is not None and "episodes" in spec):
-            raise TestSetError(f"{key}.episodes", f"must be in 1-{MAX_EPISODES} (one per layout seed with layout_seeds)")
-        if model not in MODELS:
-            raise TestSetError(f"{key}.model", f"must be one of {', '.join(MODELS)}")
+            start, stop = bounds
+            valid = is_int(start, 0, 2**31) and is_int(stop, 0, 2**31) and 0 < stop - start <= MAX_EPISODES
+            _require(valid, path, f"{key}.layout_seeds", f"must be {{start: int, stop: int}}, 1 to {MAX_EPISODES} seeds")
+            layouts = (int(start), int(stop))
+        if courses is not None:
+            valid = layouts is None and isinstance(courses, list) and bool(courses)
+            _require(valid, path, f"{key}.courses", "must list course names, and not go with layout_seeds")
+            _require(all(isinstance(c, str) and c for c in courses), path, f"{key}.courses", "must list course names")
+        valid = is_int(episodes, 1, MAX_EPISODES) and not (layouts is not None and "episodes" in spec)
+        _require(valid, path, f"{key}.episodes", f"must be in 1-{MAX_EPISODES} (one per layout seed with layout_seeds)")
+        _require(model in MODELS, path, f"{key}.model", f"must be one of {', '.join(MODELS)}")
         sets[name] = TestSet(dict(kwargs), layouts, None if courses is None else list(courses), episodes, model)
     return sets
 
