@@ -1,7 +1,4 @@
-"""
-``sb3-adc plot``: learning curves, reward-variance curves, a final-performance table, performance profiles and
-the probability of improvement from benchmark CSVs.
-"""
+"""``sb3-adc plot``: the figures and tables of :func:`~sb3_adc.experiment.plots.plot_results` from benchmark CSVs."""
 
 from __future__ import annotations
 
@@ -89,11 +86,9 @@ def _read(path: str | None, default: str, required_columns: tuple[str, ...], opt
     except (UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as error:
         accepts = CSV_ACCEPTS if option == "--csv" else f"{option} accepts a CSV table written by sb3-adc benchmark"
         raise CommandError(f"{option}: {path} is not a CSV table ({type(error).__name__}); {accepts}") from None
-    missing = [column for column in required_columns if column not in table.columns]
-    if missing:
-        raise CommandError(
-            f"{option}: {path} lacks the columns {', '.join(missing)} (is it a table written by sb3-adc benchmark?)"
-        )
+    if missing := [column for column in required_columns if column not in table.columns]:
+        lacks = f"lacks the columns {', '.join(missing)}"
+        raise CommandError(f"{option}: {path} {lacks} (is it a table written by sb3-adc benchmark?)")
     return table
 
 
@@ -105,17 +100,13 @@ def _run_folders(folder: str) -> list[str]:
     """The run folders of ``sb3-adc train`` or ``benchmark`` in ``folder``: itself, or up to two levels below."""
     if _is_run(folder):
         return [folder]
-    candidates = sorted(glob.glob(os.path.join(glob.escape(folder), "*", ""))) + sorted(
-        glob.glob(os.path.join(glob.escape(folder), "*", "*", ""))
-    )
+    escaped = glob.escape(folder)
+    candidates = [path for depth in ("*", "*/*") for path in sorted(glob.glob(os.path.join(escaped, depth, "")))]
     return [os.path.normpath(candidate) for candidate in candidates if _is_run(candidate)]
 
 
 def _read_runs(runs: list[str]) -> tuple[pd.DataFrame, pd.DataFrame | None, pd.DataFrame | None]:
-    """
-    The evaluation, final and episode tables (``None`` where no run has any) of run folders, as the benchmark's.
-    Runs of an algorithm and environment with the same seed (trained twice) are numbered instead (a note says so).
-    """
+    """The evaluation, final and episode tables (``None``: no run has any) of run folders, as the benchmark's."""
     evaluations: list[Row] = []
     finals: list[Row] = []
     episodes: list[Row] = []
@@ -129,7 +120,7 @@ def _read_runs(runs: list[str]) -> tuple[pd.DataFrame, pd.DataFrame | None, pd.D
         layouts.setdefault((settings.algo, settings.env_id), []).append((RunLayout(run_dir, settings.env_id), settings.seed))
     for (algo, env_id), group in layouts.items():
         seeds = [seed for _, seed in group]
-        if len(set(seeds)) < len(seeds):
+        if len(set(seeds)) < len(seeds):  # a run trained twice: the runs are numbered instead
             print(f"note: several runs of {algo} on {env_id} have the same seed; they are numbered 0..{len(seeds) - 1}")
             seeds = list(range(len(seeds)))
         for (layout, _), seed in zip(group, seeds, strict=True):
@@ -154,14 +145,11 @@ def _read_inputs(args: argparse.Namespace) -> tuple[pd.DataFrame, pd.DataFrame |
     if os.path.basename(path) == "evaluations.npz" and os.path.isfile(path):
         path = os.path.dirname(os.path.abspath(path))  # a run's own evaluations: its run folder
     if os.path.isdir(path) and not os.path.isfile(os.path.join(path, EVALUATIONS_CSV)):
-        runs = _run_folders(path)
-        if not runs:
+        if not (runs := _run_folders(path)):
             raise CommandError(f"--csv: {path} holds neither {EVALUATIONS_CSV} nor runs; {CSV_ACCEPTS}")
         evaluations, final, episodes = _read_runs(runs)
-        if args.final_csv:
-            final = _read(args.final_csv, "", _FINAL_NEEDS, "--final-csv")
-        if args.episodes_csv:
-            episodes = _read(args.episodes_csv, "", _EPISODES_NEEDS, "--episodes-csv")
+        final = _read(args.final_csv, "", _FINAL_NEEDS, "--final-csv") if args.final_csv else final
+        episodes = _read(args.episodes_csv, "", _EPISODES_NEEDS, "--episodes-csv") if args.episodes_csv else episodes
         return evaluations, final, episodes, path
     if os.path.isdir(path):
         path = os.path.join(path, EVALUATIONS_CSV)
@@ -212,16 +200,8 @@ def run(args: argparse.Namespace) -> int:
     if evaluations.empty:
         raise CommandError(f"no evaluations to plot in {args.csv} (after --algos/--envs)")
     output_dir = args.output_dir or os.path.join(folder, "plots")
-    final = _select(final, args)
-    outputs = plot_results(
-        evaluations,
-        output_dir,
-        final=final,
-        episodes=_select(episodes, args),
-        reps=args.reps,
-        seed=args.seed,
-        window=args.window,
-    )
+    final, episodes = _select(final, args), _select(episodes, args)
+    outputs = plot_results(evaluations, output_dir, final, episodes, reps=args.reps, seed=args.seed, window=args.window)
     compared = final if final is not None and not final.empty else last_evaluations(evaluations)
     _warn_single_runs(compared)
     comparisons = plot_comparisons(compared, output_dir, reps=args.reps, seed=args.seed)

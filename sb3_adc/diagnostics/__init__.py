@@ -1,8 +1,6 @@
 """
-Critic diagnostics for any TD3-family model (:class:`~sb3_adc.ADC`, SB3's TD3 and DDPG,
-:class:`~sb3_adc.baselines.SplitRateDDPG`): the critic's bias against discounted Monte-Carlo returns, its push on
-the actor and, for ADC, its interval visits and advantage roughness (:mod:`sb3_adc.diagnostics.critic`), logged by
-:class:`CriticDiagnosticsCallback` into a history (:mod:`sb3_adc.diagnostics.history`). See the user guide's page.
+Critic diagnostics of TD3-family models (ADC, TD3, DDPG, SplitRateDDPG), measured by :mod:`sb3_adc.diagnostics.critic`
+and logged by :class:`CriticDiagnosticsCallback` into a history (:mod:`sb3_adc.diagnostics.history`); see the guide.
 """
 
 from sb3_adc.diagnostics.critic import (

@@ -71,9 +71,7 @@ def truncation_weights(length: int, gamma: float, truncated: bool) -> np.ndarray
     :param truncated: Whether the episode was truncated (a time limit) rather than terminated
     :return: ``(T,)``
     """
-    if not truncated:
-        return np.zeros(length, dtype=np.float64)
-    return gamma ** np.arange(length, 0, -1, dtype=np.float64)
+    return gamma ** np.arange(length, 0, -1, dtype=np.float64) if truncated else np.zeros(length, dtype=np.float64)
 
 
 def _stack_observations(observations: list[Any]) -> np.ndarray | dict[str, np.ndarray]:
@@ -208,8 +206,7 @@ def advantage_roughness(advantages: th.Tensor) -> dict[str, float]:
 
 def batch_diagnostics(model: BaseAlgorithm, batch_size: int | None = None) -> dict[str, Any]:
     """
-    The diagnostics of one replay batch: :func:`gradient_norms` and, for ADC, the buffer's interval visits and the
-    advantage's roughness and profile.
+    The diagnostics of one replay batch: :func:`gradient_norms` and, for ADC, interval visits and advantage profile.
 
     :param model: A TD3-family model with a non-empty replay buffer
     :param batch_size: Size of the batch; ``None``: the model's ``batch_size``
@@ -274,11 +271,8 @@ class CriticDiagnosticsCallback(BaseCallback):
         elif not isinstance(eval_env, VecEnv):
             eval_env = DummyVecEnv([lambda: eval_env])  # type: ignore[list-item, return-value]
         self.eval_env: VecEnv = eval_env
-        self.eval_freq = eval_freq
-        self.n_eval_episodes = n_eval_episodes
-        self.log_freq = log_freq
-        self.batch_size = batch_size
-        self.truncation_tolerance = float(truncation_tolerance)
+        self.eval_freq, self.log_freq, self.batch_size = eval_freq, log_freq, batch_size
+        self.n_eval_episodes, self.truncation_tolerance = n_eval_episodes, float(truncation_tolerance)
         self.save_path = save_path
         self.history: History = []
 

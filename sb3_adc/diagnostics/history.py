@@ -126,9 +126,7 @@ def plot_diagnostics(
     axes = list(figure.subplots(2 if visits else 1, 2, squeeze=False).flat)
     for ax, key in zip(axes[:2], ("eval/critic_bias", "train/actor_grad_norm"), strict=True):
         for label, runs in runs_by_label.items():
-            rows = [
-                (seed, record["timesteps"], record[key]) for seed, run in enumerate(runs) for record in run if key in record
-            ]
+            rows = [(seed, rec["timesteps"], rec[key]) for seed, run in enumerate(runs) for rec in run if key in rec]
             if rows:
                 table = pd.DataFrame(rows, columns=["seed", "timesteps", "mean_return"]).assign(env=key, algo=label)
                 curves = learning_curves(table, reps=reps)
@@ -143,9 +141,8 @@ def plot_diagnostics(
     for label, counts in visits.items():
         fraction = (counts / counts.sum(axis=-1, keepdims=True)).mean(axis=0)
         n_intervals = fraction.shape[-1]
-        axes[2].step(
-            centres(n_intervals), fraction, where="mid", color=colors[label], label=f"{label} ({n_intervals} intervals)"
-        )
+        name = f"{label} ({n_intervals} intervals)"
+        axes[2].step(centres(n_intervals), fraction, where="mid", color=colors[label], label=name)
         axes[2].axhline(1.0 / n_intervals, color=colors[label], linewidth=0.8, linestyle=":")
         profile = _last_array(runs_by_label[label], ADVANTAGE_PROFILE_KEY)
         if profile is not None:

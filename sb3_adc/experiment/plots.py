@@ -1,7 +1,4 @@
-"""
-Figures and tables of benchmark results (:mod:`~sb3_adc.experiment.statistics`), with rliable's performance profiles
-and probability of improvement. Needs the ``experiment`` extra (matplotlib, pandas, rliable).
-"""
+"""Figures and tables of benchmark results (:mod:`~sb3_adc.experiment.statistics`; ``experiment`` extra)."""
 
 from __future__ import annotations
 
@@ -41,7 +38,7 @@ VARIANCE_LABEL = "variance across runs (return²)"
 #: Size of one panel (inches).
 PANEL_WIDTH, PANEL_HEIGHT = 6.4, 4.0
 #: Font sizes of rliable's figures.
-_RLIABLE_FONTS = {"labelsize": "medium", "ticklabelsize": "small"}
+_RLIABLE_FONTS: dict[str, Any] = {"labelsize": "medium", "ticklabelsize": "small"}
 
 
 @dataclass
@@ -97,6 +94,11 @@ def _per_env(table: pd.DataFrame, path: str, title: str, draw: Callable[[Axes, s
     return _save(figure, path, title, axes[len(envs) :])
 
 
+def _label(algo: Any, rows: pd.DataFrame) -> str:
+    """An algorithm's name in a legend, with its number of runs."""
+    return f"{display_name(str(algo))} ({int(rows['n_runs'].iloc[0])} runs)"
+
+
 def _curve(ax: Axes, table: pd.DataFrame, x: str, y: str, color: Any, label: str, band: bool = True) -> None:
     """Column ``y`` of ``table`` against column ``x`` and, with ``band``, its CI (``{y}_ci_low`` to ``{y}_ci_high``)."""
     ax.plot(table[x], table[y], color=color, label=label)
@@ -130,8 +132,7 @@ def _plot_mean_curves(curves: pd.DataFrame, path: str, x: str, xlabel: str, ylab
 
     def draw(ax: Axes, env: str, table: pd.DataFrame, colors: dict) -> None:
         for algo, group in table.groupby("algo", sort=True):
-            label = f"{display_name(str(algo))} ({int(group['n_runs'].iloc[0])} runs)"
-            _curve(ax, group, x, "mean", colors[str(algo)], label)
+            _curve(ax, group, x, "mean", colors[str(algo)], _label(algo, group))
         _decorate(ax, env, xlabel, ylabel)
 
     return _per_env(curves, path, title, draw)
@@ -157,16 +158,14 @@ def plot_wallclock_curves(curves: pd.DataFrame, path: str) -> str:
     :param curves: The output of :func:`~sb3_adc.experiment.statistics.wallclock_curves`
     :param path: The PNG file
     """
-    labels = ("wall-clock time of training (s)", "latest evaluation return")
-    return _plot_mean_curves(
-        curves, path, "wall_time_s", *labels, "Mean evaluation return against wall-clock time (95% bootstrap CI)"
-    )
+    title = "Mean evaluation return against wall-clock time (95% bootstrap CI)"
+    xlabel = "wall-clock time of training (s)"
+    return _plot_mean_curves(curves, path, "wall_time_s", xlabel, "latest evaluation return", title)
 
 
 def plot_reward_variance(curves: pd.DataFrame, episodes: pd.DataFrame | None, path: str, window: int = 10) -> str:
     """
-    Across-run variance per environment of the evaluation returns (with its 95% bootstrap CI) and, with episodes, of
-    the training-episode returns (moving average over ``window`` episodes; the paper's Figures 5 and 8).
+    Across-run variance of the evaluation returns (95% CI) and training-episode returns (the paper's Figures 5, 8).
 
     :param curves: The output of :func:`~sb3_adc.experiment.statistics.learning_curves`
     :param episodes: The training episodes (``episodes.csv``), or ``None``
@@ -212,9 +211,8 @@ def plot_final_performance(performance: pd.DataFrame, path: str, quantity: str =
         for offset, metric, marker in ((-0.15, "iqm", "o"), (0.15, "mean", "s")):
             bounds = table[["algo", metric, f"{metric}_ci_low", f"{metric}_ci_high"]].itertuples(index=False)
             for position, (algo, value, low, high) in zip(positions, bounds, strict=True):
-                ax.errorbar(
-                    value, position + offset, xerr=[[value - low], [high - value]], fmt=marker, color=colors[algo], capsize=3
-                )
+                error = [[value - low], [high - value]]
+                ax.errorbar(value, position + offset, xerr=error, fmt=marker, color=colors[algo], capsize=3)
         ax.set_yticks(positions, [display_name(algo) for algo in table["algo"]])
         ax.set(title=env, xlabel=f"{quantity} (95% CI)", xlim=(lowest - pad, highest + pad))
         ax.grid(alpha=0.3, axis="x")
@@ -231,24 +229,16 @@ def plot_performance_profiles(profiles: pd.DataFrame, path: str) -> str:
     :param path: The PNG file
     """
 
+    labels = dict(xlabel=r"final return $\tau$", ylabel=r"fraction of runs with return $> \tau$", **_RLIABLE_FONTS)
+
     def draw(ax: Axes, env: str, table: pd.DataFrame, colors: dict) -> None:
-        groups = {
-            f"{display_name(str(algo))} ({int(rows['n_runs'].iloc[0])} runs)": (str(algo), rows)
-            for algo, rows in table.groupby("algo", sort=True)
-        }
+        groups = {_label(algo, rows): (str(algo), rows) for algo, rows in table.groupby("algo", sort=True)}
+        fractions = {name: rows["fraction"].to_numpy() for name, (_, rows) in groups.items()}
+        cis = {name: rows[["fraction_ci_low", "fraction_ci_high"]].to_numpy().T for name, (_, rows) in groups.items()}
+        taus = next(iter(groups.values()))[1]["tau"].to_numpy()
+        hues = {name: colors[algo] for name, (algo, _) in groups.items()}
         plot_utils.plot_performance_profiles(
-            {name: rows["fraction"].to_numpy() for name, (_, rows) in groups.items()},
-            next(iter(groups.values()))[1]["tau"].to_numpy(),
-            performance_profile_cis={
-                name: rows[["fraction_ci_low", "fraction_ci_high"]].to_numpy().T for name, (_, rows) in groups.items()
-            },
-            ax=ax,
-            colors={name: colors[algo] for name, (algo, _) in groups.items()},
-            xlabel=r"final return $\tau$",
-            ylabel=r"fraction of runs with return $> \tau$",
-            **_RLIABLE_FONTS,
-            legend=True,
-            legendsize="small",
+            fractions, taus, performance_profile_cis=cis, ax=ax, colors=hues, legend=True, legendsize="small", **labels
         )
         ax.set_title(env)
 
@@ -265,23 +255,14 @@ def plot_probability_of_improvement(improvement: pd.DataFrame, path: str) -> str
     colors = algo_colors(sorted(set(improvement["algo_x"]) | set(improvement["algo_y"])))
     figure = Figure(figsize=(PANEL_WIDTH, 1.6 + 0.5 * max(len(improvement), 1)), layout="constrained")
     ax = figure.subplots()
-    separator = "|"
     pairs = zip(improvement["algo_x"], improvement["algo_y"], strict=True)
-    keys = [f"{display_name(x)}{separator}{display_name(y)}" for x, y in pairs]
+    keys = [f"{display_name(x)}|{display_name(y)}" for x, y in pairs]
     points = dict(zip(keys, improvement["probability"], strict=True))
     intervals = dict(zip(keys, improvement[["ci_low", "ci_high"]].to_numpy(), strict=True))
-    plot_utils.plot_probability_of_improvement(
-        points,
-        intervals,
-        pair_separator=separator,
-        ax=ax,
-        colors=[colors[algo] for algo in improvement["algo_x"]],
-        xticks=[0.0, 0.25, 0.5, 0.75, 1.0],
-        xlabel="P(X > Y): probability that a run of X (left) ends above a run of Y (right)",
-        left_ylabel="",
-        right_ylabel="",
-        **_RLIABLE_FONTS,
-    )
+    xlabel = "P(X > Y): probability that a run of X (left) ends above a run of Y (right)"
+    style = dict(xticks=[0.0, 0.25, 0.5, 0.75, 1.0], xlabel=xlabel, left_ylabel="", right_ylabel="", **_RLIABLE_FONTS)
+    colored = [colors[algo] for algo in improvement["algo_x"]]
+    plot_utils.plot_probability_of_improvement(points, intervals, pair_separator="|", ax=ax, colors=colored, **style)
     ax.axvline(0.5, color="grey", linestyle="--", linewidth=1)
     # A point estimate with a zero-width interval (P = 0 or 1 with few runs) stays visible.
     ax.plot(list(points.values()), range(len(points)), "o", color="black", markersize=4, clip_on=False)
@@ -326,8 +307,8 @@ def plot_results(
     outputs.figures.append(plot_learning_curves(curves, out("learning_curves.png")))
     outputs.figures.append(plot_reward_variance(curves, episodes, out("reward_variance.png"), window))
     outputs.figures.append(plot_final_performance(performance, out("final_performance.png")))
-    if stats.has_wall_times(episodes):
-        assert episodes is not None
+    # Tables of older runs have no wall_time_s.
+    if episodes is not None and "wall_time_s" in episodes.columns and episodes["wall_time_s"].notna().any():
         timed = stats.wallclock_curves(evaluations, episodes, reps=reps, seed=seed)
         if not timed.empty:
             _write_table(outputs, timed, out("wallclock_curves.csv"))
@@ -337,8 +318,7 @@ def plot_results(
 
 def plot_comparisons(final: pd.DataFrame, output_dir: str, reps: int = 2000, seed: int = 0) -> PlotOutputs:
     """
-    Write rliable's comparisons of the final returns: ``performance_profiles.png`` and ``.csv`` and, with two
-    algorithms or more, ``probability_of_improvement.png`` and ``.csv``.
+    Write ``performance_profiles.{png,csv}`` and, with two algorithms or more, ``probability_of_improvement.{png,csv}``.
 
     :param final: One row per run, with columns ``env``, ``algo``, ``seed`` and ``mean_return`` (``final.csv``)
     :param output_dir: Where to write

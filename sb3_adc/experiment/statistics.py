@@ -1,7 +1,4 @@
-"""
-Statistics of benchmark results with rliable (Agarwal et al., 2021), with 95% stratified-bootstrap confidence
-intervals. Needs the ``experiment`` extra (rliable, SciPy, pandas).
-"""
+"""Statistics of benchmark results with rliable's 95% stratified-bootstrap CIs (``experiment`` extra)."""
 
 from __future__ import annotations
 
@@ -23,12 +20,8 @@ with requires_extra("experiment", "the benchmark statistics"):
 #: Coverage of the confidence intervals.
 CONFIDENCE = 0.95
 #: Columns of :func:`final_performance`: the IQM and the mean, each with its CI.
-FINAL_PERFORMANCE_COLUMNS = (
-    "env",
-    "algo",
-    "n_runs",
-    *(f"{s}{end}" for s in ("iqm", "mean") for end in ("", "_ci_low", "_ci_high")),
-)
+FINAL_PERFORMANCE_COLUMNS: tuple[str, ...] = ("env", "algo", "n_runs")
+FINAL_PERFORMANCE_COLUMNS += tuple(f"{s}{end}" for s in ("iqm", "mean") for end in ("", "_ci_low", "_ci_high"))
 WALLCLOCK_CURVE_COLUMNS = ("env", "algo", "wall_time_s", "n_runs", "mean", "mean_ci_low", "mean_ci_high", "iqm")
 #: Columns of :func:`learning_curves`: those of :func:`wallclock_curves` against timesteps, and the variance with its CI.
 CURVE_COLUMNS = ("env", "algo", "timesteps", *WALLCLOCK_CURVE_COLUMNS[3:], "variance", "variance_ci_low", "variance_ci_high")
@@ -78,11 +71,6 @@ def _bootstrap(
         return point, np.stack([point, point])
     points, intervals = interval_estimates({"scores": scores}, func, reps, seed)
     return np.asarray(points["scores"]), np.asarray(intervals["scores"])
-
-
-def _at_least_two(value: int, name: str) -> None:
-    if value < 2:
-        raise ValueError(f"{name} must be >= 2, got {value}")
 
 
 def _per_algo(table: pd.DataFrame, columns: tuple[str, ...], make: Callable[[pd.DataFrame], Any]) -> pd.DataFrame:
@@ -154,8 +142,7 @@ def _curve_columns(matrix: np.ndarray, reps: int, seed: int) -> dict[str, Any]:
 
 def learning_curves(evaluations: pd.DataFrame, reps: int = 2000, seed: int = 0) -> pd.DataFrame:
     """
-    Across runs, at each evaluation timestep evaluated in every run of an (env, algo): the mean return with its
-    95% stratified-bootstrap CI, the IQM, and the variance of the returns (the paper's Figures 5 and 8) with its CI.
+    Per (env, algo), at each timestep every run evaluated: mean return (with CI), IQM and variance (with CI) across runs.
 
     :param evaluations: The evaluation curves (``evaluations.csv``)
     :param reps: Bootstrap replications
@@ -168,11 +155,6 @@ def learning_curves(evaluations: pd.DataFrame, reps: int = 2000, seed: int = 0) 
         return {"timesteps": steps.astype(np.int64), **_curve_columns(matrix, reps, seed)} if matrix.size else None
 
     return _per_algo(evaluations, CURVE_COLUMNS, curve)
-
-
-def has_wall_times(episodes: pd.DataFrame | None) -> bool:
-    """Whether training episodes carry their wall-clock time (``wall_time_s``; tables of older runs do not)."""
-    return episodes is not None and "wall_time_s" in episodes.columns and bool(episodes["wall_time_s"].notna().any())
 
 
 def evaluation_times(evaluations: pd.DataFrame, episodes: pd.DataFrame) -> pd.DataFrame:
@@ -209,7 +191,8 @@ def wallclock_curves(
     :param seed: Seed of the bootstrap
     :return: One row per (env, algo, time), columns :data:`WALLCLOCK_CURVE_COLUMNS`
     """
-    _at_least_two(n_points, "n_points")
+    if n_points < 2:
+        raise ValueError(f"n_points must be >= 2, got {n_points}")
 
     def curve(group: pd.DataFrame) -> dict[str, Any] | None:
         runs = [run.sort_values("wall_time_s") for _, run in group.groupby("seed", sort=True)]
@@ -266,28 +249,23 @@ def episode_variance(episodes: pd.DataFrame, window: int = 10) -> pd.DataFrame:
             return None
         variance = matrix.var(axis=0, ddof=1)
         smoothed = pd.Series(variance).rolling(window, min_periods=1).mean().to_numpy()
-        return {
-            "episode": index.astype(np.int64),
-            "n_runs": matrix.shape[0],
-            "variance": variance,
-            "variance_smoothed": smoothed,
-        }
+        return dict(episode=index.astype(np.int64), n_runs=len(matrix), variance=variance, variance_smoothed=smoothed)
 
     return _per_algo(episodes, ("env", "algo", "episode", "n_runs", "variance", "variance_smoothed"), variance)
 
 
 def performance_profiles(final: pd.DataFrame, n_taus: int = 101, reps: int = 2000, seed: int = 0) -> pd.DataFrame:
     """
-    Performance profiles (rliable's score distributions): per environment and algorithm, the fraction of runs
-    whose final return exceeds each tau, with CIs; the taus span the final returns of the environment.
+    rliable's performance profiles: per (env, algo), the fraction of runs whose final return exceeds each tau, with CIs.
 
     :param final: One row per run, with columns ``env``, ``algo`` and ``mean_return``
-    :param n_taus: Thresholds per environment (at least 2)
+    :param n_taus: Thresholds per environment, spanning its final returns (at least 2)
     :param reps: Bootstrap replications
     :param seed: Seed of the bootstrap
     :return: One row per (env, algo, tau), columns :data:`PERFORMANCE_PROFILE_COLUMNS`
     """
-    _at_least_two(n_taus, "n_taus")
+    if n_taus < 2:
+        raise ValueError(f"n_taus must be >= 2, got {n_taus}")
     taus = {env: np.linspace(returns.min(), returns.max(), n_taus) for env, returns in final.groupby("env")["mean_return"]}
     for env_taus in taus.values():
         env_taus[0] -= max(1e-6, 1e-6 * abs(env_taus[0]))  # just below the lowest return: every profile starts at 1

@@ -1,7 +1,4 @@
-"""
-The report of an experiment (:mod:`sb3_adc.experiment.experiments`): its merged tables, its summary per environment
-and configuration, the time to a return threshold, and its critic diagnostics (``experiment`` extra).
-"""
+"""An experiment's report: merged tables, summary, time to threshold and critic diagnostics (``experiment`` extra)."""
 
 from __future__ import annotations
 
@@ -32,7 +29,7 @@ with requires_extra("experiment", "the experiment summaries"):
     import pandas as pd
     from rliable import metrics
 
-#: Columns of the formatted summary but the last, which names the reference (see :func:`display_columns`).
+#: Columns of the formatted summary but the last, which names the reference.
 _DISPLAY_COLUMNS = ["env", "configuration", "runs", "final IQM [95% CI]", "final mean", "across-seed std", "AUC IQM [95% CI]"]
 
 
@@ -75,21 +72,14 @@ def summary(
         final_points, final_intervals = interval_estimates(scores, iqm_and_mean, reps, 0)
         area_points, area_intervals = interval_estimates(areas, iqm_and_mean, reps, 1)
         base = scores.get(reference) if reference is not None else None
-        pairs = {
-            name: (base, other)
-            for name, other in scores.items()
-            if name != reference and base is not None and other.shape == base.shape
-        }
+        pairs = {} if base is None else {n: (base, s) for n, s in scores.items() if n != reference and s.shape == base.shape}
         improvement = interval_estimates(pairs, metrics.probability_of_improvement, reps, 2) if pairs else ({}, {})
         for name in scores:
-            row: dict[str, Any] = {
-                "env": env,
-                "config": name,
-                "n_runs": scores[name].shape[0],
-                **_iqm_and_mean("final", final_points[name], final_intervals[name]),
-                "final_std": float(scores[name].std(ddof=1)) if scores[name].shape[0] > 1 else np.nan,
-                **_iqm_and_mean("auc", area_points[name], area_intervals[name]),
-            }
+            n_runs = scores[name].shape[0]
+            row: dict[str, Any] = {"env": env, "config": name, "n_runs": n_runs}
+            row |= _iqm_and_mean("final", final_points[name], final_intervals[name])
+            row["final_std"] = float(scores[name].std(ddof=1)) if n_runs > 1 else np.nan
+            row |= _iqm_and_mean("auc", area_points[name], area_intervals[name])
             if episodes is not None and "wall_time_s" in episodes.columns:
                 runs = episodes[(episodes["env"] == env) & (episodes["algo"] == name)]
                 row["run_time_s_median"] = float(runs.groupby("seed")["wall_time_s"].max().median())
@@ -99,15 +89,6 @@ def summary(
                 row["p_improvement_ci_low"], row["p_improvement_ci_high"] = float(low), float(high)
             rows.append(row)
     return pd.DataFrame(rows)
-
-
-def display_columns(reference: str | None) -> list[str]:
-    """
-    Columns of the formatted summary (``summary.md`` and ``summary_table.csv``).
-
-    :param reference: The reference configuration
-    """
-    return [*_DISPLAY_COLUMNS, f"P({reference} > configuration) [95% CI]"]
 
 
 def display_table(table: pd.DataFrame, reference: str | None) -> pd.DataFrame:
@@ -126,7 +107,7 @@ def display_table(table: pd.DataFrame, reference: str | None) -> pd.DataFrame:
         auc_iqm = f"{row.auc_iqm:.1f} [{row.auc_iqm_ci_low:.1f}, {row.auc_iqm_ci_high:.1f}]"
         spread = [f"{row.final_mean:.1f}", f"{row.final_std:.1f}"]
         rows.append([row.env, row.config, str(row.n_runs), final_iqm, *spread, auc_iqm, improvement])
-    return pd.DataFrame(rows, columns=display_columns(reference))
+    return pd.DataFrame(rows, columns=[*_DISPLAY_COLUMNS, f"P({reference} > configuration) [95% CI]"])
 
 
 def markdown(table: pd.DataFrame, reference: str | None) -> str:
@@ -137,7 +118,7 @@ def markdown(table: pd.DataFrame, reference: str | None) -> str:
     :param reference: The reference configuration
     """
     display = display_table(table, reference)
-    lines = ["| " + " | ".join(display_columns(reference)) + " |", "|---|---|---:|---|---:|---:|---|---|"]
+    lines = ["| " + " | ".join(display.columns) + " |", "|---|---|---:|---|---:|---:|---|---|"]
     lines += ["| " + " | ".join(row) + " |" for row in display.itertuples(index=False)]
     return "\n".join(lines) + "\n"
 
@@ -279,11 +260,7 @@ def read_metadata(path: str) -> dict[str, Any]:
 
     :param path: The file
     """
-    if not os.path.isfile(path):
-        return {}
-    with open(path, encoding="utf-8") as stream:
-        loaded: dict[str, Any] = json.load(stream)
-    return loaded
+    return json.loads(Path(path).read_text(encoding="utf-8")) if os.path.isfile(path) else {}
 
 
 def write_metadata(path: str, metadata: Mapping[str, Any]) -> None:
