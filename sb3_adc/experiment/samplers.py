@@ -1,14 +1,13 @@
 """
-Optuna search spaces of the algorithms that ``sb3-adc train -optimize`` tunes.
-
-A sampler draws hyperparameters from an Optuna trial and returns them as overrides of the algorithm's entry (the
-``key: value`` pairs of ``-params``), so a trial runs through the same engine, validation and log layout as any run.
-The keys the algorithms share follow the RL Zoo's ``rl_zoo3/hyperparams_opt.py``. :func:`register_zoo_samplers`
-adds the spaces the Zoo lacks to its ``HYPERPARAMS_SAMPLER``, so that the Zoo's own ``objective`` searches them.
+Optuna search spaces of the algorithms that ``sb3-adc train -optimize`` tunes: a sampler draws overrides of the
+algorithm's entry (as ``-params``) from a trial, so a trial runs through the same engine as any run. The shared keys
+follow the RL Zoo's ``hyperparams_opt.py``; :func:`register_zoo_samplers` adds the spaces the Zoo lacks to its
+``HYPERPARAMS_SAMPLER``.
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Collection, Mapping, Sequence
 from typing import Any
 
@@ -89,12 +88,9 @@ class Space:
         :param ranges: The keys' ranges
         """
         for key, choices in ranges.items():
-            if not self.searches(key):
-                continue
-            if isinstance(choices, tuple):
-                scale, low, high = choices
-                params[key] = self.trial.suggest_float(key, low, high, log=scale == "log")
-            else:
+            if isinstance(choices, tuple) and self.searches(key):
+                params[key] = self.trial.suggest_float(key, choices[1], choices[2], log=choices[0] == "log")
+            elif self.searches(key):
                 params[key] = self.trial.suggest_categorical(key, list(choices))
         return params
 
@@ -146,27 +142,23 @@ SPACES: dict[str, tuple[Step, ...]] = {
 }
 
 
-def _sampler(steps: tuple[Step, ...]) -> Sampler:
-    """The sampler that draws ``steps`` in order."""
-
-    def sample_space(space: Space) -> dict[str, Any]:
-        params: dict[str, Any] = {}
-        for step in steps:
-            if callable(step):
-                step(space, params)
-            elif isinstance(step, tuple):
-                ranges, key, value, default = step
-                if space.current(params, key, default) == value:
-                    space.draw(params, ranges)
-            else:
-                space.draw(params, step)
-        return params
-
-    return sample_space
+def _draw_steps(steps: tuple[Step, ...], space: Space) -> dict[str, Any]:
+    """The values drawn by ``steps``, in order."""
+    params: dict[str, Any] = {}
+    for step in steps:
+        if callable(step):
+            step(space, params)
+        elif isinstance(step, tuple):
+            ranges, key, value, default = step
+            if space.current(params, key, default) == value:
+                space.draw(params, ranges)
+        else:
+            space.draw(params, step)
+    return params
 
 
 #: ``--algo`` name -> its search space.
-SAMPLERS: dict[str, Sampler] = {algo: _sampler(steps) for algo, steps in SPACES.items()}
+SAMPLERS: dict[str, Sampler] = {algo: functools.partial(_draw_steps, steps) for algo, steps in SPACES.items()}
 
 
 def sample(algo: str, space: Space) -> dict[str, Any]:
@@ -181,9 +173,8 @@ def sample(algo: str, space: Space) -> dict[str, Any]:
 
 def zoo_sampler(algo: str) -> Callable[[optuna.Trial, int, int, dict[str, Any]], dict[str, Any]]:
     """
-    The space of ``algo`` with the signature of the Zoo's samplers (``trial, n_actions, n_envs, additional_args``):
-    the values drawn are validated as an entry and come back as the constructor keywords the Zoo's ``objective``
-    passes to the algorithm (``action_noise`` built for ``n_actions``).
+    The space of ``algo`` as a Zoo sampler (``trial, n_actions, n_envs, additional_args``): the values drawn are
+    validated as an entry and returned as the algorithm's keywords (``action_noise`` built for ``n_actions``).
 
     :param algo: The algorithm (a key of :data:`SAMPLERS`)
     """

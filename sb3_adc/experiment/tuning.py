@@ -1,18 +1,16 @@
 """
 Hyperparameter tuning with Optuna (``sb3-adc train -optimize``), on the same engine as every other run.
 
-The RL Zoo's ``hyperparameters_optimization``, with the Zoo's pruners and ``TrialEvalCallback``: a trial's value is
-the final evaluation's mean return (``objective="return"``) or success rate (``"success"``). Differences, each for a
-reason: the first trial is the shipped entry (a tuned entry is at least as good on the tuning seeds); a trial trains
-several seeds and can evaluate on other environment keywords (``eval_env_kwargs``); ``search_space`` adds or replaces
-choices per key; an interrupted trial is re-queued with its hyperparameters (Optuna's
-``RetryHeartbeatStaleTrialCallback``) and keeps its runs; and the budget is exactly ``n_trials`` finished trials
-whatever the number of ``--n-jobs`` worker processes, so that tuned algorithms are compared fairly.
+The RL Zoo's ``hyperparameters_optimization`` with its pruners and ``TrialEvalCallback``: a trial's value is the final
+evaluation's mean return (``objective="return"``) or success rate (``"success"``). Differences, each for a reason: the
+first trial is the shipped entry (a tuned entry is at least as good on the tuning seeds); a trial trains several seeds
+and can evaluate on other environment keywords (``eval_env_kwargs``); ``search_space`` adds or replaces choices per
+key; an interrupted trial is re-queued with its hyperparameters and keeps its runs; and the budget is exactly
+``n_trials`` finished trials whatever the ``--n-jobs``, so that tuned algorithms are compared fairly.
 
-Files, under ``{log_folder}/tuning/{study_name}/``: ``study.log`` (the Optuna journal), ``trial_N/hyperparams.yml``
-and ``trial_N/seed_S/`` (run folders), ``trials.csv``, ``best_hyperparams.yml`` (usable with ``-conf``) and ``.lock``:
-a study in a journal file is tuned by one command at a time (:class:`~sb3_adc.experiment.layout.FolderLock`); a study
-in a database (``--storage`` URL) is shared on purpose by several commands, without a lock.
+Files, under ``{log_folder}/tuning/{study_name}/``: ``study.log`` (the Optuna journal), ``trial_N/hyperparams.yml``,
+``trial_N/seed_S/`` (runs), ``trials.csv``, ``best_hyperparams.yml`` (for ``-conf``) and ``.lock``: one command at a
+time tunes a study kept in a journal file; a ``--storage`` database is shared on purpose, without a lock.
 """
 
 from __future__ import annotations
@@ -44,7 +42,7 @@ from sb3_adc.config.loader import (
 from sb3_adc.experiment.settings import check_env_kwargs
 from sb3_adc.experiment.tuning_settings import TuneSettings, check_search_space, check_success_reported
 from sb3_adc.experiment.tuning_storage import check_storage, open_study, repair_journal, study_lock
-from sb3_adc.experiment.tuning_trials import CONTINUES, SHIPPED, continue_interrupted, fail_dead_trials, objective, write_entry
+from sb3_adc.experiment.tuning_trials import CONTINUES, SHIPPED, continue_interrupted, objective, write_entry
 
 
 @dataclass
@@ -72,8 +70,7 @@ def tune(settings: TuneSettings) -> TuneResult:
 
     :param settings: What to tune
     :raises HyperparamsError: for invalid settings or hyperparameters, before any trial runs
-    :raises RunLocked: if another command is tuning the study in its folder (a journal storage), before anything is
-        written
+    :raises RunLocked: if another command tunes the study in its folder (a journal storage), before anything is written
     """
     base = _base_entry(settings)
     # Resolve the starting entry once: invalid hyperparameters stop here, before a folder is made.
@@ -90,7 +87,6 @@ def tune(settings: TuneSettings) -> TuneResult:
             repair_journal(settings.storage_url())
         study = open_study(settings, worker=0)  # a database it cannot open stops here, before the study's folder is made
         os.makedirs(settings.study_dir, exist_ok=True)
-        fail_dead_trials(study)
         continue_interrupted(study)
         if not any(trial.user_attrs.get(SHIPPED) and trial.state != TrialState.FAIL for trial in study.trials):
             study.enqueue_trial({}, user_attrs={SHIPPED: True})
@@ -184,13 +180,9 @@ def _report(settings: TuneSettings, study: optuna.Study) -> TuneResult:
     origin = "the shipped entry" if best.user_attrs.get(SHIPPED) else f"trial {best.number}"
     quantity = "mean final return" if settings.objective == "return" else "mean final success rate"
     n_finished = len(_finished(study))
-    write_entry(
-        best_file,
-        settings.env_id,
-        read_yaml_file(str(best.user_attrs["hyperparams"]))[settings.env_id],
-        f"Best of {n_finished} trials of study {settings.name} ({origin}): {quantity} "
-        f"{best.value:.2f} over seeds {list(settings.seeds)}, {settings.n_timesteps or 'entry'} timesteps",
-    )
+    comment = f"Best of {n_finished} trials of study {settings.name} ({origin}): {quantity} {best.value:.2f} over seeds "
+    comment += f"{list(settings.seeds)}, {settings.n_timesteps or 'entry'} timesteps"
+    write_entry(best_file, settings.env_id, read_yaml_file(str(best.user_attrs["hyperparams"]))[settings.env_id], comment)
     print(f"Best: {origin}, {quantity} {best.value:.2f}; hyperparameters in {best_file} (use with -conf)")
     return TuneResult(settings.study_dir, float(cast(float, best.value)), dict(best.params), best_file, n_finished)
 

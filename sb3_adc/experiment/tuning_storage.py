@@ -29,7 +29,7 @@ TUNING_ACTIVITY = "tuning its study (one command per study kept in a journal fil
 
 def study_lock(settings: TuneSettings) -> contextlib.AbstractContextManager[Any]:
     """
-    The lock :func:`~sb3_adc.experiment.tuning.tune` holds for its life: the study folder's
+    The lock :func:`~sb3_adc.experiment.tuning.tune` holds: the study folder's
     :class:`~sb3_adc.experiment.layout.FolderLock`; none for a database (``--storage`` URL), shared on purpose.
 
     :param settings: The study's settings
@@ -41,10 +41,9 @@ def study_lock(settings: TuneSettings) -> contextlib.AbstractContextManager[Any]
 
 def repair_journal(path: str) -> str | None:
     """
-    Cut a torn last line (a write cut short by a crash) off an Optuna journal file, so that its study can continue:
-    Optuna skips that line when it reads but appends its next record to it, making a line no read can decode. Under
-    the journal's lock, the file is copied to ``{path}.torn-{n}`` (the first free ``n``) and truncated after its last
-    newline; a warning names both files.
+    Cut a torn last line (a write cut short by a crash) off an Optuna journal file: Optuna skips it when it reads but
+    appends its next record to it, making a line no read decodes. Under the journal's lock, the file is copied to
+    ``{path}.torn-{n}`` (the first free ``n``) and truncated after its last newline, with a warning naming both.
 
     :param path: The journal file (one that does not exist is left alone)
     :return: The copy of the torn file, or ``None`` where nothing was torn
@@ -93,31 +92,29 @@ def check_storage(url: str) -> None:
     :param url: The storage (a path, or a URL with ``://``)
     :raises HyperparamsError: naming ``--storage`` and what it accepts
     """
-    shown = hide_password(url, url)
+    shown, (dialect, url_sep, rest) = hide_password(url, url), url.partition("://")
     accepted = f"accepted: a journal file (*.log) or a database URL ({', '.join(f'{d}://...' for d in DATABASE_DIALECTS)})"
-    if "://" in url:
-        dialect = url.partition("://")[0].partition("+")[0]
+    path, what = url, "journal file"
+    if url_sep:
+        dialect = dialect.partition("+")[0]
         if dialect not in DATABASE_DIALECTS:
             raise refused("--storage", f"{shown}: unknown database {dialect!r}; {accepted}")
         if dialect != "sqlite":
             return
-        path = url.partition("://")[2][1:]  # sqlite:///relative.db, sqlite:////absolute.db
+        path, what = rest[1:], "SQLite database file"  # sqlite:///relative.db, sqlite:////absolute.db
         if path in ("", ":memory:"):
             raise refused("--storage", f"{shown}: an SQLite database in memory cannot be shared or resumed; give a file")
-        what = "SQLite database file"
-    else:
-        path, what = url, "journal file"
-    folder = os.path.dirname(os.path.abspath(path))
     try:
         mode = os.stat(path).st_mode
     except FileNotFoundError:
-        mode = None
+        mode = stat.S_IFREG
     except OSError as error:
         raise refused("--storage", f"{shown}: cannot be read as a {what}: {error.strerror}") from None
-    if mode is not None and not stat.S_ISREG(mode):
+    if not stat.S_ISREG(mode):
         kind = "a folder" if stat.S_ISDIR(mode) else "not a regular file"
         raise refused("--storage", f"{shown} is {kind}; it must be a {what}; {accepted}")
-    if what.startswith("SQLite") and not os.path.isdir(folder):
+    folder = os.path.dirname(os.path.abspath(path))
+    if url_sep and not os.path.isdir(folder):
         raise refused("--storage", f"{shown}: the folder {folder} of the {what} does not exist")
 
 
@@ -129,8 +126,7 @@ def open_study(settings: TuneSettings, worker: int) -> optuna.Study:
     :param worker: The worker's number (its sampler's seed is ``settings.sampler_seed + worker``)
     :raises HyperparamsError: naming ``--storage`` for a storage that cannot be opened (no password shown)
     """
-    url = settings.storage_url()
-    seed = settings.sampler_seed + worker
+    url, seed = settings.storage_url(), settings.sampler_seed + worker
     # The Zoo's random sampler and pruners (median after `n_evaluations // 3` warm-up steps, successive halving, none);
     # not its TPE, which is multivariate: that would change the draws of committed studies.
     zoo: Any = SimpleNamespace(seed=seed, n_startup_trials=settings.n_startup_trials, n_evaluations=settings.n_evaluations)
@@ -139,21 +135,15 @@ def open_study(settings: TuneSettings, worker: int) -> optuna.Study:
         sampler = optuna.samplers.TPESampler(n_startup_trials=settings.n_startup_trials, seed=seed)
     pruner = ExperimentManager._create_pruner(zoo, settings.pruner)
     try:
-        storage: str | optuna.storages.BaseStorage = url  # a database: Optuna opens it (SQLAlchemy needed)
+        store: str | optuna.storages.BaseStorage = url  # a database: Optuna opens it (SQLAlchemy needed)
         if "://" not in url:
             os.makedirs(os.path.dirname(os.path.abspath(url)), exist_ok=True)
-            storage = optuna.storages.JournalStorage(JournalFileBackend(url))
+            store = optuna.storages.JournalStorage(JournalFileBackend(url))
         return optuna.create_study(
-            storage=storage,
-            study_name=settings.name,
-            sampler=sampler,
-            pruner=pruner,
-            direction="maximize",
-            load_if_exists=True,
+            storage=store, study_name=settings.name, sampler=sampler, pruner=pruner, direction="maximize", load_if_exists=True
         )
     except ImportError as error:
-        message = f"{url}: {error} (a journal file `*.log` needs nothing)"
-        raise refused("--storage", hide_password(message, url)) from None
+        raise refused("--storage", hide_password(f"{url}: {error} (a journal file `*.log` needs nothing)", url)) from None
     except Exception as error:
         # A file that is no Optuna journal (JSON it cannot decode, records without its keys), or the database's own
         # errors (SQLAlchemy's: no such server, access denied, not a database...).

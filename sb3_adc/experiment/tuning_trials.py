@@ -1,7 +1,5 @@
-"""
-One trial of a study: its entry, the runs of its seeds and the evaluations they report to the pruner, and the
-continuation of a trial that a Ctrl-C or a dead worker interrupted (with its hyperparameters and runs).
-"""
+"""A trial of a study: its entry, its seeds' runs and the evaluations they report, and the continuation of a trial
+that a Ctrl-C or a dead worker interrupted (with its hyperparameters and runs)."""
 
 from __future__ import annotations
 
@@ -160,14 +158,13 @@ def trial_entry(
     base: Mapping[str, Any], params: Mapping[str, Any], overrides: Mapping[str, Any], n_timesteps: int | None = None
 ) -> dict[str, Any]:
     """
-    The hyperparameter entry of a trial: the starting entry, the sampled values, then the fixed overrides, merged
-    as :func:`~sb3_adc.config.loader.apply_overrides` merges ``-params``.
+    A trial's entry: the starting entry, the sampled values, then the fixed overrides, merged as ``-params``.
 
     :param base: The starting entry
     :param params: The sampled values
     :param overrides: Values fixed in every trial (``-params``)
-    :param n_timesteps: The study's training budget (``None``: the entry's), written into the entry so that the
-        trial's file, and the best one, train with ``-conf`` for as long as the trial did
+    :param n_timesteps: The study's training budget (``None``: the entry's), written into the entry so that its
+        file trains with ``-conf`` for as long as the trial did
     """
     entry = apply_overrides(base, {**params, **overrides})
     if n_timesteps is not None:
@@ -177,16 +174,15 @@ def trial_entry(
 
 class TrialEvalCallback(ZooTrialEvalCallback):
     """
-    The RL Zoo's ``TrialEvalCallback``, reporting the study's objective ``n_evaluations`` times per run (on the
-    timestep count), on the trial entry's evaluation environment, with the report steps of the seeds end to end.
+    The RL Zoo's ``TrialEvalCallback``, reporting the study's objective ``n_evaluations`` times per run (by timesteps)
+    on the trial entry's evaluation environment, with the report steps of the seeds end to end.
 
     :param trial: The Optuna trial
     :param settings: The study's settings
     :param hyperparams_file: The trial's hyperparameter file
     :param seed: The run's seed
     :param step_offset: Report step of this run's first evaluation
-    :param earlier: The evaluations an interrupted trial reported (by step), carried over where a resumed run's
-        checkpoint covers them
+    :param earlier: The evaluations an interrupted trial reported (by step), carried over up to a resumed checkpoint
     """
 
     def __init__(
@@ -233,10 +229,12 @@ class TrialEvalCallback(ZooTrialEvalCallback):
         self.eval_env.close()
 
 
-def fail_dead_trials(study: optuna.Study) -> None:
+def continue_interrupted(study: optuna.Study) -> None:
     """
-    Mark as failed (and interrupted) the running trials of this machine whose worker process is gone. Optuna's
-    heartbeats do this for a database (``RDBStorage`` only, after a grace period); the default journal file has none.
+    Re-queue each interrupted trial not yet continued, with its parameters and attributes, with Optuna's
+    ``RetryHeartbeatStaleTrialCallback`` (:func:`objective` then reuses its runs). First, a running trial of this
+    machine whose worker process is gone is failed as interrupted: Optuna's heartbeats do this for a database only
+    (``RDBStorage``, after a grace period), the default journal file has none.
 
     :param study: The study
     """
@@ -248,15 +246,6 @@ def fail_dead_trials(study: optuna.Study) -> None:
             study._storage.set_trial_user_attr(trial._trial_id, INTERRUPTED, True)
             study._storage.set_trial_state_values(trial._trial_id, TrialState.FAIL)
             print(f"Trial {trial.number} was interrupted (its worker {worker} is gone): failed, a new trial continues it")
-
-
-def continue_interrupted(study: optuna.Study) -> None:
-    """
-    Re-queue each interrupted trial not yet continued, with its parameters and attributes, with Optuna's
-    ``RetryHeartbeatStaleTrialCallback`` (:func:`objective` then reuses its runs).
-
-    :param study: The study
-    """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ExperimentalWarning)
         retry = RetryHeartbeatStaleTrialCallback()
@@ -279,7 +268,7 @@ def _alive(pid: int) -> bool:
 
 def write_entry(path: str, env_id: str, entry: Mapping[str, Any], comment: str) -> None:
     """
-    Write a hyperparameter file of one entry (usable with ``-conf``), under a comment line.
+    Write a hyperparameter file of one entry (usable with ``-conf``) under a comment line.
 
     :param path: The file
     :param env_id: The entry's environment id
