@@ -1,16 +1,11 @@
 """
-Exact resume: what a checkpoint holds beyond SB3's model and replay buffer (which leave out the random generators
-and the episodes in progress), so that a resumed run is the run it continues, draw for draw.
-
-A :class:`Continuation` (``rl_model_continuation_{t}_steps.pkl``) keeps the generators, each environment's episode
-in progress as Gymnasium's contract makes enough (its generators before the reset and the actions since, kept and
-replayed by :class:`EpisodeRecorder`), and the step a periodic checkpoint is taken inside (:class:`PendingStep`),
-which a resume stores and trains on before SB3's loop goes on. It is read back by a restricted unpickler
-(:data:`~sb3_adc.common.safe_load.CONTINUATION_GLOBALS`).
+Exact resume: what a checkpoint holds beyond SB3's model and replay buffer, so that a resumed run is the run it
+continues, draw for draw. A :class:`Continuation` (``rl_model_continuation_{t}_steps.pkl``) keeps the random
+generators, each environment's episode in progress (its generators before the reset and the actions since, replayed
+by :class:`EpisodeRecorder`) and the step a periodic checkpoint is taken inside (:class:`PendingStep`).
 
 Not exact (resumed on a new random stream): checkpoints of a Ctrl-C that fell anywhere, of older versions, of runs
-with ``frame_stack`` or other stateful ``VecEnv`` wrappers or gSDE, and of rollouts a checkpoint cuts (``train_freq``
-longer than one step).
+with ``frame_stack`` or other stateful ``VecEnv`` wrappers or gSDE, and of rollouts a checkpoint cuts.
 """
 
 from __future__ import annotations
@@ -25,7 +20,6 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
-from stable_baselines3.common.type_aliases import TrainFreq
 from stable_baselines3.common.utils import should_collect_more_steps
 from stable_baselines3.common.vec_env import VecCheckNan, VecEnv, VecEnvWrapper, VecNormalize, unwrap_vec_normalize
 
@@ -62,19 +56,17 @@ def set_generator_states(env: gym.Env[Any, Any], states: dict[tuple[int, str], A
     """
     layers = _layers(env)
     for (depth, name), state in states.items():
-        layer = layers[depth]
-        if isinstance(state, dict):
-            generator = vars(layer).get(name)
+        generator = vars(layers[depth]).get(name)
+        if isinstance(state, dict):  # a Generator's
             if not isinstance(generator, np.random.Generator):
                 generator = np.random.Generator(getattr(np.random, state["bit_generator"])())
-                setattr(layer, name, generator)
+                setattr(layers[depth], name, generator)
             generator.bit_generator.state = state
         else:
-            legacy = vars(layer).get(name)
-            if not isinstance(legacy, np.random.RandomState):
-                legacy = np.random.RandomState()
-                setattr(layer, name, legacy)
-            legacy.set_state(state)
+            if not isinstance(generator, np.random.RandomState):
+                generator = np.random.RandomState()
+                setattr(layers[depth], name, generator)
+            generator.set_state(state)
 
 
 def _layers(env: gym.Env[Any, Any]) -> list[gym.Env[Any, Any]]:
@@ -103,8 +95,7 @@ class EpisodeRecord:
 
 class EpisodeRecorder(gym.Wrapper[Any, Any, Any, Any]):
     """
-    Keep what replays the episode in progress (:class:`EpisodeRecord`), and replay one into this environment. It
-    wraps every other wrapper, so a replay goes through them all; its memory grows with the episode's length.
+    Record the episode in progress (:class:`EpisodeRecord`) and replay one; outermost, so a replay goes through all.
 
     :param env: The environment
     """
@@ -174,17 +165,13 @@ class PendingStep:
         :param vec_normalize: The training environments' ``VecNormalize``, if any
         """
         dones = np.asarray(variables["dones"])
-        train_freq: TrainFreq = variables["train_freq"]
-        episodes = int(variables["num_collected_episodes"])
-        steps = int(variables["num_collected_steps"])
-        if should_collect_more_steps(train_freq, steps, episodes + int(dones.sum())):
+        episodes, steps = int(variables["num_collected_episodes"]), int(variables["num_collected_steps"])
+        if should_collect_more_steps(variables["train_freq"], steps, episodes + int(dones.sum())):
             return None
+        step = {name: copy.deepcopy(variables[name]) for name in ("buffer_actions", "new_obs", "rewards", "infos")}
         return cls(
-            buffer_actions=copy.deepcopy(variables["buffer_actions"]),
-            new_obs=copy.deepcopy(variables["new_obs"]),
-            rewards=copy.deepcopy(variables["rewards"]),
+            **step,
             dones=dones.copy(),
-            infos=copy.deepcopy(variables["infos"]),
             num_collected_steps=steps,
             num_collected_episodes=episodes,
             original_obs=vec_normalize.get_original_obs() if vec_normalize is not None else None,
@@ -238,9 +225,17 @@ class Continuation:
         pending = PendingStep.of_locals(step_locals, vec_normalize) if step_locals is not None else None
         if step_locals is not None and pending is None:
             return None
+        random_states: dict[str, Any] = {
+            "python": random.getstate(),
+            "numpy": np.random.get_state(),  # noqa: NPY002 - SB3's replay buffers and action noises draw from it
+            "torch": th.get_rng_state(),
+            "action_space": copy.deepcopy(model.action_space.np_random.bit_generator.state),
+        }
+        if model.device.type == "cuda":
+            random_states["cuda"] = th.cuda.get_rng_state(model.device)
         return cls(
             timesteps=model.num_timesteps,
-            random_states=_random_states(model),
+            random_states=random_states,
             last_obs=copy.deepcopy(model._last_obs),  # SB3's state of the loop, which no API saves
             last_original_obs=copy.deepcopy(model._last_original_obs),
             last_episode_starts=copy.deepcopy(model._last_episode_starts),
@@ -252,8 +247,8 @@ class Continuation:
 
     def restore(self, model: OffPolicyAlgorithm, eval_env: VecEnv | None, remaining: int) -> None:
         """
-        Continue the run in ``model`` (loaded from the checkpoint): replay the episodes in progress, restore the loop's
-        state and the generators, then store and train on the pending step; ``model.learn`` goes on from there.
+        Continue the run in ``model``: replay the episodes in progress, restore the loop's state and the generators,
+        then store and train on the pending step.
 
         :param model: The model loaded from the checkpoint
         :param eval_env: The run's evaluation environments (``None``: none)
@@ -270,7 +265,12 @@ class Continuation:
         model._last_obs = copy.deepcopy(self.last_obs)
         model._last_original_obs = copy.deepcopy(self.last_original_obs)
         model._last_episode_starts = copy.deepcopy(self.last_episode_starts)
-        _set_random_states(model, self.random_states)
+        random.setstate(self.random_states["python"])
+        np.random.set_state(self.random_states["numpy"])  # noqa: NPY002
+        th.set_rng_state(self.random_states["torch"])
+        model.action_space.np_random.bit_generator.state = self.random_states["action_space"]
+        if "cuda" in self.random_states and model.device.type == "cuda":
+            th.cuda.set_rng_state(self.random_states["cuda"], model.device)
         if self.pending is not None:
             _complete(model, self.pending, vec_normalize, remaining)
 
@@ -285,50 +285,23 @@ def _restorable(venv: VecEnv) -> bool:
 
 
 def _replay(venv: VecEnv, records: list[EpisodeRecord | None]) -> None:
-    replayed = False
-    for index, record in enumerate(records):
-        if record is not None:
-            venv.env_method("replay_episode", record, indices=[index])
-            replayed = True
-    if replayed:
+    indices = [index for index, record in enumerate(records) if record is not None]
+    for index in indices:
+        venv.env_method("replay_episode", records[index], indices=[index])
+    if indices:
         # The original run's first reset used the seeds: a later ``VecEnv.reset`` must not apply them again.
         venv.unwrapped._reset_seeds()
         venv.unwrapped._reset_options()
 
 
-def _random_states(model: BaseAlgorithm) -> dict[str, Any]:
-    states: dict[str, Any] = {
-        "python": random.getstate(),
-        "numpy": np.random.get_state(),  # noqa: NPY002 - SB3's replay buffers and action noises draw from it
-        "torch": th.get_rng_state(),
-        "action_space": copy.deepcopy(model.action_space.np_random.bit_generator.state),
-    }
-    if model.device.type == "cuda":
-        states["cuda"] = th.cuda.get_rng_state(model.device)
-    return states
-
-
-def _set_random_states(model: BaseAlgorithm, states: dict[str, Any]) -> None:
-    random.setstate(states["python"])
-    np.random.set_state(states["numpy"])  # noqa: NPY002
-    th.set_rng_state(states["torch"])
-    model.action_space.np_random.bit_generator.state = states["action_space"]
-    if "cuda" in states and model.device.type == "cuda":
-        th.cuda.set_rng_state(states["cuda"], model.device)
-
-
 def _complete(model: OffPolicyAlgorithm, pending: PendingStep, vec_normalize: VecNormalize | None, remaining: int) -> None:
-    """
-    What ``OffPolicyAlgorithm.collect_rollouts`` does after the pending step's callbacks, then ``learn``'s training
-    (SB3 2.x, written out: SB3 has no entry into its loop in the middle of a step).
-    """
+    """SB3 2.x's ``collect_rollouts`` after the step's callbacks, then ``learn``'s training (SB3 has no entry there)."""
     env, replay_buffer = model.get_env(), model.replay_buffer
     assert env is not None, "the model is loaded with its environments"
     assert replay_buffer is not None, "the model is loaded with its replay buffer"
     # What `learn` sets up before its loop (episode buffers, the vectorized noise, the timestep target).
     model._setup_learn(remaining, callback=None, reset_num_timesteps=False)
     if vec_normalize is not None:
-        assert pending.original_obs is not None
         assert pending.original_reward is not None
         vec_normalize.old_obs = copy.deepcopy(pending.original_obs)
         vec_normalize.old_reward = pending.original_reward.copy()

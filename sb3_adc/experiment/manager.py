@@ -1,10 +1,8 @@
 """
-The experiment engine: :class:`RunManager`, the RL Zoo's ``ExperimentManager`` (its life cycle: ``setup_experiment``,
-``learn``, ``save_trained_model``) with hooks for what the Zoo lacks: hyperparameters resolved safely by
-:mod:`sb3_adc.config`; exact resume from the run's own checkpoint (:mod:`sb3_adc.experiment.continuation`), no file
-running code unless trusted (:mod:`sb3_adc.experiment.restore`); checkpoints and evaluations written atomically on
-the timestep count (:mod:`sb3_adc.experiment.callbacks`); a checkpoint on Ctrl-C, an error at the first NaN or inf,
-and a final evaluation. Every ``sb3-adc train``, benchmark run and tuning trial runs through it.
+The experiment engine of every ``sb3-adc train``, benchmark run and tuning trial: :class:`RunManager`, the RL Zoo's
+``ExperimentManager`` with what the Zoo lacks: hyperparameters of :mod:`sb3_adc.config`, exact and safe resume
+(:mod:`~sb3_adc.experiment.continuation`, :mod:`~sb3_adc.experiment.restore`), atomic checkpoints and evaluations
+(:mod:`~sb3_adc.experiment.callbacks`), a checkpoint on Ctrl-C, an error at the first NaN or inf, a final evaluation.
 """
 
 from __future__ import annotations
@@ -18,7 +16,6 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
 from rl_zoo3.exp_manager import ExperimentManager
 from rl_zoo3.utils import ALGOS
 from stable_baselines3.common.base_class import BaseAlgorithm
@@ -47,10 +44,7 @@ from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings, write_y
 
 
 def register_algorithms() -> None:
-    """
-    Add sb3-adc's algorithms (:data:`~sb3_adc.config.algorithms.ALGORITHMS`: ``adc``, ``vanilla_ac``, ``ddpg`` and
-    ``td3`` as SB3's plus an option each) to the Zoo's ``ALGOS`` table.
-    """
+    """Add sb3-adc's algorithms (:data:`~sb3_adc.config.algorithms.ALGORITHMS`) to the Zoo's ``ALGOS`` table."""
     for name in ALGORITHMS.names():
         ALGOS[name] = ALGORITHMS.resolve(name, "sb3_adc.experiment.manager", "algo")  # type: ignore[assignment]
 
@@ -78,8 +72,7 @@ class RunManager(ExperimentManager):
     :param checkpoint: The checkpoint to resume from (``None``: a new run, or a run started again from scratch)
     :param callbacks: Callbacks called after the run's own, e.g. the pruning callback of a tuning trial
     :param contents: The checkpoint's files, read already (``None``: read here)
-    :param trust_model_file: Unpickle the model to continue (``-i``) and the checkpoint's files as SB3 does, which can
-        run any code they hold (default: restricted unpicklers, which raise ``UnsafeModelFileError`` for more)
+    :param trust_model_file: Unpickle the model to continue (``-i``) and the checkpoint's files as SB3 does (any code)
     """
 
     def __init__(
@@ -153,17 +146,13 @@ class RunManager(ExperimentManager):
     def _preprocess_action_noise(
         self, hyperparams: dict[str, Any], saved_hyperparams: dict[str, Any], env: VecEnv
     ) -> dict[str, Any]:
-        if isinstance(env.action_space, spaces.Box):
-            self.n_actions = env.action_space.shape[0]
+        hyperparams = super()._preprocess_action_noise(hyperparams, saved_hyperparams, env)  # sets n_actions
         if self.experiment.noise is not None:
             hyperparams["action_noise"] = self.experiment.make_action_noise(env.action_space)
         return hyperparams
 
     def create_log_folder(self) -> None:
-        """
-        A new run writes ``config.yml`` and ``args.yml`` first (resumable from then on); a resumed run keeps the
-        evaluations and episodes up to its checkpoint.
-        """
+        """A new run writes ``config.yml`` and ``args.yml`` first; a resumed one keeps its records to its checkpoint."""
         super().create_log_folder()  # the Zoo's: makes the params folder
         if self.checkpoint is None and not os.path.isfile(self.layout.args):
             write_yaml(self.layout.config, self.experiment.saved)
@@ -179,10 +168,9 @@ class RunManager(ExperimentManager):
             metric, seed = self.settings.best_model_metric, self.seed + EVAL_SEED_OFFSET
             evaluation = (self.eval_env, self.eval_freq, history, self.n_eval_episodes, self.save_path, self.verbose)
             own.append(PeriodicEvalCallback(*evaluation, best_model_metric=metric, eval_seed=seed))
-        # Always there: without periodic checkpoints it still saves the one of a stop (Ctrl-C).
+        # The saver is always there: without periodic checkpoints it still saves the one of a stop (Ctrl-C).
         self.saver.eval_env = self.eval_env
-        own.append(self.saver)
-        self.callbacks = [*own, *self.callbacks, *self.extra_callbacks]
+        self.callbacks = [*own, self.saver, *self.callbacks, *self.extra_callbacks]
 
     def create_envs(self, n_envs: int, eval_env: bool = False, no_log: bool = False) -> VecEnv:
         """
@@ -217,10 +205,7 @@ class RunManager(ExperimentManager):
         return self.train_env
 
     def _load_pretrained_agent(self, hyperparams: dict[str, Any], env: VecEnv) -> BaseAlgorithm:
-        """
-        Resume from the run's checkpoint (its continuation restored in :meth:`learn`; without one, a new random
-        stream), or continue a saved model (``-i``) as the Zoo does, with a safe load, from timestep 0.
-        """
+        """Resume from the run's checkpoint, or continue a saved model (``-i``) safely, from timestep 0."""
         algorithm_class: type[Any] = self.experiment.algorithm_class
         if self.contents is None:
             print(f"Continuing the training of {self.trained_agent}")
@@ -252,9 +237,8 @@ class RunManager(ExperimentManager):
 
     def learn(self, model: BaseAlgorithm) -> None:
         """
-        Train to the budget. Ctrl-C stops after the step in progress with an exact checkpoint, a second Ctrl-C (or
-        another ``KeyboardInterrupt``) at once with an inexact one; both raise :class:`RunInterrupted`. A NaN or inf
-        raises :class:`~sb3_adc.experiment.divergence.TrainingDiverged`.
+        Train to the budget. Ctrl-C stops after the step with an exact checkpoint, a second one at once with an
+        inexact one, both raising :class:`RunInterrupted`; a NaN or inf raises ``TrainingDiverged``.
 
         :param model: The model of :meth:`setup_experiment`
         """
@@ -263,8 +247,13 @@ class RunManager(ExperimentManager):
         if self.tensorboard_log is None:
             # SB3's default logger would make an empty ``SB3-<date>`` folder in the temporary directory.
             model.set_logger(configure(self.save_path, ["stdout"] if model.verbose >= 1 else []))
-        if self.continuation is not None:
-            self._continue(model)
+        if self.continuation is not None:  # the checkpoint's continuation
+            assert isinstance(model, OffPolicyAlgorithm), "only off-policy checkpoints hold a continuation"
+            assert self.checkpoint is not None
+            assert self.train_env is not None
+            self.continuation.restore(model, self.eval_env, max(self.n_timesteps - model.num_timesteps, 0))
+            if self.train_env.has_attr("set_total_steps"):  # the replay counted the episodes' steps again
+                self.train_env.env_method("set_total_steps", self.checkpoint.timesteps // self.experiment.n_envs)
         try:
             with warnings.catch_warnings(), self.saver.stopping_on_ctrl_c():
                 # SB3's progress bar uses tqdm's rich front-end, which warns that it is experimental.
@@ -331,15 +320,10 @@ class RunManager(ExperimentManager):
         finally:
             final_env.close()
             self._close()
-        episode_returns = [float(value) for value in np.atleast_1d(returns)]
+        returns, lengths = [float(x) for x in np.atleast_1d(returns)], [int(x) for x in np.atleast_1d(lengths)]
+        succeeded = successes if len(successes) == len(returns) else None
         evaluation = FinalEvaluation(
-            self.algo,
-            self.settings.env_id,
-            self.seed,
-            int(model.num_timesteps),
-            episode_returns,
-            [int(value) for value in np.atleast_1d(lengths)],
-            successes if len(successes) == len(episode_returns) else None,
+            self.algo, self.settings.env_id, self.seed, model.num_timesteps, returns, lengths, succeeded
         )
         evaluation.save(self.layout.final_evaluation)
         print(evaluation.summary())
@@ -353,16 +337,6 @@ class RunManager(ExperimentManager):
         self.learn(model)
         self.save_trained_model(model)
         return self.evaluate(model)
-
-    def _continue(self, model: BaseAlgorithm) -> None:
-        """Restore the checkpoint's continuation (:meth:`~sb3_adc.experiment.continuation.Continuation.restore`)."""
-        assert self.continuation is not None
-        assert self.checkpoint is not None
-        assert self.train_env is not None
-        assert isinstance(model, OffPolicyAlgorithm), "only off-policy checkpoints hold a continuation"
-        self.continuation.restore(model, self.eval_env, max(self.n_timesteps - model.num_timesteps, 0))
-        if self.train_env.has_attr("set_total_steps"):  # the replay counted the episodes' steps again
-            self.train_env.env_method("set_total_steps", self.checkpoint.timesteps // self.experiment.n_envs)
 
     def _close(self) -> None:
         if self.train_env is not None:

@@ -74,10 +74,8 @@ class CheckpointContents:
 
 def read_checkpoint(checkpoint: Checkpoint, trust: bool = False) -> CheckpointContents:
     """
-    Read a checkpoint to resume from, and tell whether it can be: its files must be those of its manifest, where it
-    has one (checked before anything is unpickled), its model zip must pass its CRC check and hold ``data``, its
-    pickles must unpickle. No file runs code: the model's entries are built from the safe load's allow-list
-    (:func:`~sb3_adc.common.safe_load.safe_objects`), each pickle from that of what sb3-adc writes in it.
+    Read a checkpoint to resume from: its files must match its manifest (if any, checked before unpickling), its model
+    zip must pass its CRC check and hold ``data``, its pickles must unpickle, each with its allow-list (no code runs).
 
     :param checkpoint: The checkpoint
     :param trust: Unpickle its files as SB3 does, which can run any code they hold
@@ -92,8 +90,7 @@ def read_checkpoint(checkpoint: Checkpoint, trust: bool = False) -> CheckpointCo
         raise DamagedCheckpoint(damage)
     try:
         with zipfile.ZipFile(checkpoint.model) as archive:
-            broken = archive.testzip()
-            names = archive.namelist()
+            broken, names = archive.testzip(), archive.namelist()
     except (OSError, zipfile.BadZipFile, EOFError, ValueError) as error:
         raise DamagedCheckpoint(f"{name} does not open as a zip ({error})") from None
     if broken is not None:
@@ -153,10 +150,8 @@ def checkpoint_damage(checkpoint: Checkpoint, trust: bool = False) -> str | None
     return None
 
 
-def _use_replay_buffer(model: OffPolicyAlgorithm, replay_buffer: object) -> None:
+def _use_replay_buffer(model: OffPolicyAlgorithm, replay_buffer: ReplayBuffer) -> None:
     """SB3's ``load_replay_buffer`` (``truncate_last_traj=True``) for a buffer unpickled already (safely)."""
-    if not isinstance(replay_buffer, ReplayBuffer):
-        raise ValueError(f"not a replay buffer: a {type(replay_buffer).__name__}")
     model.replay_buffer = replay_buffer
     if not hasattr(replay_buffer, "handle_timeout_termination"):  # SB3 < 2.1's buffers, as SB3 reads them
         replay_buffer.handle_timeout_termination = False
@@ -168,26 +163,10 @@ def _use_replay_buffer(model: OffPolicyAlgorithm, replay_buffer: object) -> None
     replay_buffer.device = model.device
 
 
-def _read_replay_buffer(path: str) -> ReplayBuffer:
-    """A replay buffer saved with a model to continue, read by the restricted unpickler (``ModelFileError``: damaged)."""
-    try:
-        replay_buffer = restricted_load(path, REPLAY_BUFFER_GLOBALS, "a replay buffer")
-    except UnsafeModelFileError:
-        raise
-    except Exception as error:  # unpickling a damaged file can raise almost anything
-        raise model_file_error(f"{path} is not a readable replay buffer: {type(error).__name__}: {error}") from error
-    if not isinstance(replay_buffer, ReplayBuffer):
-        raise model_file_error(f"{path} holds a {type(replay_buffer).__name__}, not a replay buffer")
-    return replay_buffer
-
-
-def saved_with(model_path: str, env_id: str) -> tuple[str | None, str | None]:
+def _saved_with(model_path: str, env_id: str) -> tuple[str | None, str | None]:
     """
-    The replay buffer and ``VecNormalize`` statistics saved with a model (``None`` where absent): a checkpoint's
-    own, else the RL Zoo's ``replay_buffer.pkl`` beside the model and ``{env_name}/vecnormalize.pkl``.
-
-    :param model_path: The model file
-    :param env_id: The environment id of its run
+    A model's replay buffer and ``VecNormalize`` statistics (``None`` where absent): a checkpoint's own, else the RL
+    Zoo's ``replay_buffer.pkl`` beside the model and ``{env_name}/vecnormalize.pkl``.
     """
     layout = RunLayout(os.path.dirname(os.path.abspath(model_path)), env_id)
     files = (os.path.join(layout.run_dir, "replay_buffer.pkl"), layout.vecnormalize)
@@ -202,8 +181,8 @@ def load_trained_agent(
     algorithm_class: type[Any], path: str, env_id: str, trust: bool = False, **kwargs: Any
 ) -> BaseAlgorithm:
     """
-    A saved model to continue (the RL Zoo's ``-i``) with the replay buffer saved with it (:func:`saved_with`), its
-    timestep count at 0. Neither file runs code unless ``trust``.
+    A saved model to continue (the RL Zoo's ``-i``) with the replay buffer saved with it, its timestep count at 0.
+    Neither file runs code unless ``trust``.
 
     :param algorithm_class: The run's algorithm
     :param path: The model file
@@ -214,7 +193,7 @@ def load_trained_agent(
     """
     with model_file_errors(path, algorithm_class.__name__), loading_model():
         model = algorithm_class.load(path, custom_objects=load_objects(path, trust), **kwargs)
-    replay_buffer, _ = saved_with(path, env_id)
+    replay_buffer, _ = _saved_with(path, env_id)
     if replay_buffer is not None:
         if not hasattr(model, "load_replay_buffer"):
             raise ValueError(f"{type(model).__name__} has no replay buffer to load {replay_buffer} into")
@@ -223,22 +202,31 @@ def load_trained_agent(
         if trust:
             model.load_replay_buffer(replay_buffer)
         else:
-            _use_replay_buffer(model, _read_replay_buffer(replay_buffer))
+            try:
+                loaded = restricted_load(replay_buffer, REPLAY_BUFFER_GLOBALS, "a replay buffer")
+            except UnsafeModelFileError:
+                raise
+            except Exception as error:  # unpickling a damaged file can raise almost anything
+                problem = f"{type(error).__name__}: {error}"
+                raise model_file_error(f"{replay_buffer} is not a readable replay buffer: {problem}") from error
+            if not isinstance(loaded, ReplayBuffer):
+                raise model_file_error(f"{replay_buffer} holds a {type(loaded).__name__}, not a replay buffer")
+            _use_replay_buffer(model, loaded)
     model.num_timesteps = 0
     return model
 
 
 def saved_statistics(model_path: str, env_id: str, trust: bool = False) -> str | VecNormalize | None:
     """
-    The ``VecNormalize`` statistics saved with a model to continue (:func:`saved_with`): the file (read later by the
-    restricted unpickler) or, when trusted, the statistics unpickled (``None``: none).
+    The ``VecNormalize`` statistics saved with a model to continue: the file (read later by the restricted unpickler)
+    or, when trusted, the statistics unpickled (``None``: none).
 
     :param model_path: The model file (``""``: none, no statistics)
     :param env_id: The environment id of its run
     :param trust: Unpickle the file as SB3 does
     :raises UnsafeModelFileError: for a trusted file that holds no statistics
     """
-    statistics = saved_with(model_path, env_id)[1] if model_path else None
+    statistics = _saved_with(model_path, env_id)[1] if model_path else None
     if statistics is not None and trust:
         loaded = load_from_pkl(statistics)
         if not isinstance(loaded, VecNormalize):

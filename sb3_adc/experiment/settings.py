@@ -62,14 +62,12 @@ def check_device(device: str) -> None:
     """
     import torch as th
 
-    if device == "auto":
-        return
-    try:
-        th.device(device)
-    except (RuntimeError, TypeError):
-        raise SettingsError(
-            "device", f"must be auto, cpu, cuda, cuda:N or another PyTorch device type (mps, xpu, ...), got {device!r}"
-        ) from None
+    if device != "auto":
+        try:
+            th.device(device)
+        except (RuntimeError, TypeError):
+            problem = f"must be auto, cpu, cuda, cuda:N or another PyTorch device type (mps, xpu, ...), got {device!r}"
+            raise SettingsError("device", problem) from None
 
 
 def check_env_kwargs(env_id: str, env_kwargs: dict[str, Any], name: str = "env_kwargs") -> None:
@@ -82,34 +80,21 @@ def check_env_kwargs(env_id: str, env_kwargs: dict[str, Any], name: str = "env_k
     :raises SettingsError: if ``gym.make`` raises a ``TypeError`` or ``ValueError``
     """
     import gymnasium as gym
-
-    try:
-        env = gym.make(env_id, **env_kwargs)
-    except (TypeError, ValueError) as error:
-        raise SettingsError(
-            name, f"rejected by {env_id}: {error}. Keywords it accepts: {', '.join(env_keywords(env_id))}"
-        ) from None
-    env.close()
-
-
-def env_keywords(env_id: str) -> list[str]:
-    """
-    The keyword arguments ``gym.make`` accepts for an environment: those of its entry point, and ``gym.make``'s own.
-
-    :param env_id: The environment id (registered)
-    """
-    import gymnasium as gym
     from gymnasium.envs.registration import load_env_creator
 
-    spec = gym.spec(env_id)
-    names = list(GYM_MAKE_KEYWORDS)
     try:
-        creator = spec.entry_point if callable(spec.entry_point) else load_env_creator(str(spec.entry_point))
-        parameters = inspect.signature(creator).parameters.values()
-    except (ValueError, TypeError, ImportError, AttributeError):  # no signature to read: gym.make's own only
-        return names
-    kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
-    return [parameter.name for parameter in parameters if parameter.kind in kinds and parameter.name != "self"] + names
+        gym.make(env_id, **env_kwargs).close()
+    except (TypeError, ValueError) as error:
+        spec, keywords = gym.spec(env_id), list(GYM_MAKE_KEYWORDS)  # the entry point's keywords, then gym.make's
+        try:
+            creator = spec.entry_point if callable(spec.entry_point) else load_env_creator(str(spec.entry_point))
+            parameters = inspect.signature(creator).parameters.values()
+            kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+            keywords[:0] = [item.name for item in parameters if item.kind in kinds and item.name != "self"]
+        except (ValueError, TypeError, ImportError, AttributeError):  # no signature to read: gym.make's own only
+            pass
+        problem = f"rejected by {env_id}: {error}. Keywords it accepts: {', '.join(keywords)}"
+        raise SettingsError(name, problem) from None
 
 
 @dataclass
@@ -137,15 +122,14 @@ class TrainSettings:
     :param verbose: SB3 verbosity (0: quiet, 1: training logs)
     :param progress_bar: Whether to show a progress bar
     :param eval_env_kwargs: Keyword arguments replacing ``env_kwargs``' in the evaluation environments only
-    :param tensorboard_log: TensorBoard log folder (the RL Zoo's ``-tb``, logs in ``{env_name}/{AlgorithmClass}_{N}``);
-        ``None``: none, or ``{log_folder}/tensorboard`` when tracking
+    :param tensorboard_log: TensorBoard log folder (the RL Zoo's ``-tb``; ``None``: none, or
+        ``{log_folder}/tensorboard`` when tracking)
     :param trained_agent: A saved model to train ``n_timesteps`` more, with its replay buffer (the RL Zoo's ``-i``)
     :param track: Track the run with Weights & Biases (the ``track`` extra), which uploads the TensorBoard logs
     :param wandb_project_name: The Weights & Biases project of a tracked run
     :param wandb_entity: The Weights & Biases entity (team) of a tracked run (``None``: the user's default)
-    :param best_model_metric: What picks ``best_model.zip`` among the periodic evaluations: ``return`` (SB3's
-        highest mean return) or ``success`` (the highest success rate, ties broken by the return, every evaluation
-        on the same episodes, which must report ``info["is_success"]``)
+    :param best_model_metric: What picks ``best_model.zip``: ``return`` (the highest mean return) or ``success`` (the
+        highest success rate, ties broken by the return; the episodes must report ``info["is_success"]``)
     """
 
     algo: str
@@ -185,9 +169,8 @@ class TrainSettings:
         if self.vec_env not in ("dummy", "subproc"):
             raise SettingsError("vec_env", f"must be 'dummy' or 'subproc', got {self.vec_env!r}")
         if self.best_model_metric not in BEST_MODEL_METRICS:
-            raise SettingsError(
-                "best_model_metric", f"must be one of {', '.join(BEST_MODEL_METRICS)}, got {self.best_model_metric!r}"
-            )
+            metrics = ", ".join(BEST_MODEL_METRICS)
+            raise SettingsError("best_model_metric", f"must be one of {metrics}, got {self.best_model_metric!r}")
         if not isinstance(self.device, str):
             raise SettingsError("device", f"must be a string, got {self.device!r}")
         check_device(self.device)
@@ -204,9 +187,8 @@ class TrainSettings:
         if self.track and self.tensorboard_log is None:  # Weights & Biases uploads the TensorBoard logs
             self.tensorboard_log = os.path.join(self.log_folder, TRACKED_TENSORBOARD_FOLDER)
         if self.tensorboard_log is not None and importlib.util.find_spec("tensorboard") is None:
-            raise SettingsError(
-                "tensorboard_log", "needs the tensorboard package, which is not installed: pip install tensorboard"
-            )
+            problem = "needs the tensorboard package, which is not installed: pip install tensorboard"
+            raise SettingsError("tensorboard_log", problem)
 
     def tensorboard_folder(self) -> str | None:
         """The model's ``tensorboard_log``: ``{tensorboard_log}/{env_name}``, as the RL Zoo's (``None``: no logs)."""
@@ -214,7 +196,7 @@ class TrainSettings:
 
     def evaluation_env_kwargs(self, env_kwargs: dict[str, Any]) -> dict[str, Any]:
         """
-        The keyword arguments of the evaluation environments: ``env_kwargs`` with :attr:`eval_env_kwargs` applied.
+        The evaluation environments' keyword arguments: ``env_kwargs`` updated with :attr:`eval_env_kwargs`.
 
         :param env_kwargs: Those of the training environments
         """
@@ -254,7 +236,7 @@ class TrainSettings:
 
     def save(self, path: str) -> None:
         """
-        Write the settings as YAML, atomically (a resume reads them).
+        Write the settings as YAML, atomically.
 
         :param path: The file
         """
@@ -266,8 +248,8 @@ class TrainSettings:
         Read settings written by :meth:`save` (of this version or an earlier one).
 
         :param path: The file
-        :raises ValueError: if the file does not hold settings (a ``HyperparamsError`` for a file that is not YAML or
-            is over a limit of :mod:`sb3_adc.config.loader`, a :class:`SettingsError` for an invalid value)
+        :raises ValueError: if the file does not hold settings (``HyperparamsError``: not YAML, or over a limit;
+            :class:`SettingsError`: an invalid value)
         """
         data = read_yaml_file(path)
         names = {item.name for item in dataclasses.fields(cls)}
@@ -284,8 +266,7 @@ class TrainSettings:
         :raises FileNotFoundError: if the folder holds no run
         :raises ValueError: if its ``args.yml`` does not hold settings (see :meth:`load`)
         """
-        names = sorted(os.listdir(run_dir)) if os.path.isdir(run_dir) else []
-        for name in names:
+        for name in sorted(os.listdir(run_dir)) if os.path.isdir(run_dir) else []:
             path = os.path.join(run_dir, name, "args.yml")
             if os.path.isfile(path):
                 return cls.load(path)

@@ -1,9 +1,7 @@
 """
-Training runs in the RL-Zoo log layout (:mod:`sb3_adc.experiment.layout`): :func:`train` starts one, :func:`resume`
-continues one from its last checkpoint. Both check what they are asked before a folder is written, then hand the
-run to the engine (:class:`~sb3_adc.experiment.manager.RunManager`) while holding the run's lock, so that a second
-process on the run gets :class:`~sb3_adc.experiment.layout.RunLocked` at once. Ctrl-C (or SIGTERM, in
-:func:`sigterm_as_sigint`) saves a checkpoint first.
+Training runs in the RL-Zoo log layout: :func:`train` starts one, :func:`resume` continues one from its last
+checkpoint, both checking their arguments before writing, then running :class:`~sb3_adc.experiment.manager.RunManager`
+under the run's lock (a second process gets :class:`~sb3_adc.experiment.layout.RunLocked`).
 """
 
 from __future__ import annotations
@@ -15,6 +13,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from types import FrameType
+from typing import Any
 
 import gymnasium as gym
 from stable_baselines3.common.callbacks import BaseCallback
@@ -46,10 +45,7 @@ def sigterm_received() -> bool:
 
 
 def _sigterm_as_sigint(signum: int, frame: FrameType | None) -> None:
-    """
-    Do what SIGINT would do now: call its handler, or raise ``KeyboardInterrupt``, also where SIGINT is ignored (as
-    for a command a shell script starts in the background).
-    """
+    """Call SIGINT's handler, or raise ``KeyboardInterrupt`` where SIGINT is ignored (a background job's)."""
     _SIGTERM_RECEIVED.set()
     handler = signal.getsignal(signal.SIGINT)
     if callable(handler):
@@ -60,10 +56,7 @@ def _sigterm_as_sigint(signum: int, frame: FrameType | None) -> None:
 
 @contextmanager
 def sigterm_as_sigint() -> Iterator[None]:
-    """
-    While the block runs, SIGTERM (Slurm, Kubernetes, ``kill``) is handled as SIGINT (Ctrl-C): a checkpoint and an
-    orderly exit. Outside the main thread nothing changes.
-    """
+    """While the block runs, SIGTERM (Slurm, Kubernetes, ``kill``) is handled as SIGINT (main thread only)."""
     if threading.current_thread() is threading.main_thread():
         _SIGTERM_RECEIVED.clear()
     with handling_signal(signal.SIGTERM, _sigterm_as_sigint):
@@ -93,18 +86,15 @@ def train(settings: TrainSettings, callbacks: Sequence[BaseCallback] = (), trust
 
     :param settings: What to train and how to log it
     :param callbacks: Callbacks called after the run's own, e.g. a tuning trial's pruning; not saved with the run
-    :param trust_model_file: Unpickle the model to continue (``settings.trained_agent``) and the files saved with it
-        as SB3 does, which runs any code they hold (default: a safe load, which refuses a file that needs more
-        with :class:`~sb3_adc.common.safe_load.UnsafeModelFileError`)
+    :param trust_model_file: Unpickle the model to continue (``settings.trained_agent``) and its files as SB3 does,
+        running any code they hold (default: a safe load, raising ``UnsafeModelFileError`` for a file that needs more)
     :raises HyperparamsError: for invalid hyperparameters
     :raises SettingsError: for ``env_kwargs`` the environment rejects, an action space the algorithm cannot act in,
         or a ``trained_agent`` of another algorithm or for other spaces
     :raises ModelFileError: for a ``trained_agent`` that is not a readable model file
     :raises UnsafeModelFileError: for a ``trained_agent`` a safe load refuses
     :raises RunLocked: if another process is training in ``settings.run_dir``
-    :raises RunInterrupted: on Ctrl-C, after saving a checkpoint
-
-    All but the last are raised before anything is written.
+    :raises RunInterrupted: on Ctrl-C, after saving a checkpoint (the others: before anything is written)
     """
     config = load_hyperparams(settings.algo, settings.env_id, settings.conf_file, settings.overrides, settings.n_timesteps)
     if settings.env_kwargs:
@@ -118,10 +108,8 @@ def train(settings: TrainSettings, callbacks: Sequence[BaseCallback] = (), trust
             raise FileExistsError(
                 f"{run_dir} already holds a run; continue it with resume (sb3-adc train --resume {run_dir})."
             )
-        print(
-            f"Training {settings.algo} on {settings.env_id} (seed {settings.seed}, {config.n_timesteps} timesteps, "
-            f"hyperparameters from {config.source}) in {run_dir}"
-        )
+        what = f"{settings.algo} on {settings.env_id} (seed {settings.seed}, {config.n_timesteps} timesteps"
+        print(f"Training {what}, hyperparameters from {config.source}) in {run_dir}")
         settings = replace(settings, run_dir=run_dir)
         evaluation = RunManager(settings, config, callbacks=callbacks, trust_model_file=trust_model_file).run()
     return TrainResult(run_dir, layout.final_model, evaluation)
@@ -136,9 +124,8 @@ def resume(
     trust_model_file: bool = False,
 ) -> TrainResult:
     """
-    Continue a run from its latest checkpoint with its saved settings and hyperparameters (or return its result if
-    it has finished). Episodes and evaluations after the checkpoint are dropped; without a checkpoint the run starts
-    again in the same folder.
+    Continue a run from its latest checkpoint with its saved settings (a finished run: return its result), dropping
+    the episodes and evaluations after it; without a checkpoint the run starts again in the same folder.
 
     :param run_dir: The run's folder
     :param n_timesteps: A new budget (for instance to train a finished run further); not below the checkpoint
@@ -151,13 +138,10 @@ def resume(
     :raises RunLocked: if another process is training the run (before anything is written)
     :raises RunInterrupted: on Ctrl-C, after saving a checkpoint
     """
-    settings = TrainSettings.of_run(run_dir)
-    settings = replace(
-        settings,
-        run_dir=run_dir,
-        progress_bar=settings.progress_bar if progress_bar is None else progress_bar,
-        verbose=settings.verbose if verbose is None else verbose,
-    )
+    changes: dict[str, Any] = {
+        name: value for name, value in (("progress_bar", progress_bar), ("verbose", verbose)) if value is not None
+    }
+    settings = replace(TrainSettings.of_run(run_dir), run_dir=run_dir, **changes)
     layout = RunLayout(run_dir, settings.env_id)
     with layout.lock():  # held for the run's whole life, taken before anything of the run is read or changed
         config = resolve_entry(settings.algo, settings.env_id, read_yaml_file(layout.config), layout.config)
@@ -166,13 +150,9 @@ def resume(
         if n_timesteps is not None and n_timesteps != config.n_timesteps:
             reached = checkpoint.timesteps if checkpoint is not None else 0
             if n_timesteps < reached:
-                raise HyperparamsError(
-                    "command line",
-                    "n_timesteps",
-                    f"the run has a checkpoint at timestep {reached}: the budget cannot be {n_timesteps}",
-                )
-            config.n_timesteps = n_timesteps
-            config.saved["n_timesteps"] = n_timesteps
+                problem = f"the run has a checkpoint at timestep {reached}: the budget cannot be {n_timesteps}"
+                raise HyperparamsError("command line", "n_timesteps", problem)
+            config.n_timesteps = config.saved["n_timesteps"] = n_timesteps
             write_yaml(layout.config, config.saved)
         if layout.is_finished():
             finished = FinalEvaluation.load(layout.final_evaluation)
@@ -180,8 +160,7 @@ def resume(
                 print(f"{run_dir} has finished: {finished.summary()}")
                 return TrainResult(run_dir, layout.final_model, finished, resumed_from=finished.timesteps)
             os.remove(layout.final_evaluation)
-        manager = RunManager(settings, config, checkpoint, callbacks, contents, trust_model_file)
-        evaluation = manager.run()
+        evaluation = RunManager(settings, config, checkpoint, callbacks, contents, trust_model_file).run()
     return TrainResult(run_dir, layout.final_model, evaluation, resumed_from=checkpoint.timesteps if checkpoint else None)
 
 
@@ -225,12 +204,8 @@ def _check_before_run(settings: TrainSettings, config: ExperimentConfig, trust_m
         probe = config.wrap_env(gym.make(config.env_id, **settings.evaluation_env_kwargs(config.env_kwargs)))
         problem = success_unreported(probe)
         if problem is not None:
-            raise SettingsError(
-                "best_model_metric",
-                f"'success' needs episodes that end with info['is_success'], but on {config.env_id} {problem}; "
-                f"accepted: {', '.join(BEST_MODEL_METRICS)}",
-                "--best-model-metric",
-            )
+            problem = f"'success' needs episodes that end with info['is_success'], but on {config.env_id} {problem}"
+            raise SettingsError("best_model_metric", f"{problem}; accepted: {', '.join(BEST_MODEL_METRICS)}")
     env = wrap_vec_env(config, make_run_envs(config, 1, settings.seed), training=False)
     try:
         try:
@@ -267,14 +242,10 @@ def _check_trained_agent(settings: TrainSettings, config: ExperimentConfig, env:
     saved, expected = data.get("policy_class"), policy if isinstance(policy, type) else aliases.get(str(policy))
     if expected is not None and saved is not expected:
         saved_name = saved.__name__ if isinstance(saved, type) else repr(saved)
-        raise SettingsError(
-            "trained_agent",
-            f"must be a model of --algo {settings.algo} ({name}, policy {expected.__name__}): {path} holds a model "
-            f"with the policy {saved_name}",
-        )
+        problem = f"must be a model of --algo {settings.algo} ({name}, policy {expected.__name__})"
+        raise SettingsError("trained_agent", f"{problem}: {path} holds a model with the policy {saved_name}")
     try:
         check_for_correct_spaces(env, data["observation_space"], data["action_space"])
     except ValueError as error:
-        raise SettingsError(
-            "trained_agent", f"must be a model for the spaces of {settings.env_id}: {path} is not ({error})"
-        ) from None
+        problem = f"must be a model for the spaces of {settings.env_id}: {path} is not ({error})"
+        raise SettingsError("trained_agent", problem) from None
