@@ -15,8 +15,9 @@ from sb3_adc.cli.common import (
     refusing_unsafe_files,
 )
 from sb3_adc.config import ALGORITHMS
-from sb3_adc.experiment.enjoy import MODEL_CHOICES, default_seed, load_model, load_run, model_path, play, write_recording
+from sb3_adc.experiment.enjoy import MODEL_CHOICES, load_model, load_run, model_path, play, write_recording
 from sb3_adc.experiment.layout import env_name, latest_run_dir
+from sb3_adc.experiment.settings import EVAL_SEED_OFFSET
 
 HELP = "play a trained model and print its returns; --gif/--video record a rollout"
 DESCRIPTION = """\
@@ -90,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
     path, statistics = model_path(layout, args.model)
     with refusing_unsafe_files():
         model = load_model(config, path, device=args.device, safe=not args.trust_model_file)
-    seed = default_seed(settings) if args.seed is None else args.seed
+    seed = settings.seed + EVAL_SEED_OFFSET if args.seed is None else args.seed  # default: the run's evaluations'
     print(f"Playing {path} ({settings.algo} on {settings.env_id}) for {args.n_episodes} episodes, seed {seed}")
     record = args.gif is not None or args.video is not None
     rollouts = play(model, config, args.n_episodes, seed, statistics, deterministic=not args.stochastic, record=record)

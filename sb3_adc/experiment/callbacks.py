@@ -217,10 +217,9 @@ class PeriodicEvalCallback(EvalCallback):
         if rate is None:
             raise ValueError("best_model_metric 'success': the evaluation's episodes ended without info['is_success']")
         score = (rate, float(self.last_mean_reward))
-        if self.best_success is not None and score <= self.best_success:
-            return False
-        self.best_success = score
-        return True
+        improved = self.best_success is None or score > self.best_success
+        self.best_success = score if improved else self.best_success
+        return improved
 
 
 def save_model(model: BaseAlgorithm, path: str, vecnormalize_path: str) -> None:
@@ -306,7 +305,8 @@ class CheckpointSaver(CheckpointCallback):
                 save_to_pkl(temporary, continuation)
         save_model(self.model, checkpoint.model, checkpoint.vecnormalize)
         write_manifest(checkpoint)
-        self._prune()
+        for old in self.layout.checkpoints()[: -self.keep]:
+            old.remove()
         return checkpoint
 
     def stopping_on_ctrl_c(self) -> contextlib.AbstractContextManager[None]:
@@ -322,10 +322,6 @@ class CheckpointSaver(CheckpointCallback):
             print("\nCtrl-C: stopping after this step with a checkpoint (Ctrl-C again stops at once).", flush=True)
 
         return handling_signal(signal.SIGINT, request_stop)
-
-    def _prune(self) -> None:
-        for old in self.layout.checkpoints()[: -self.keep]:
-            old.remove()
 
 
 @contextlib.contextmanager

@@ -17,7 +17,7 @@ from sb3_adc.config import ExperimentConfig, resolve_entry
 from sb3_adc.config.loader import read_yaml_file
 from sb3_adc.experiment.envs import make_run_envs, wrap_vec_env
 from sb3_adc.experiment.layout import RunLayout
-from sb3_adc.experiment.settings import EVAL_SEED_OFFSET, TrainSettings
+from sb3_adc.experiment.settings import TrainSettings
 
 #: Which model of a run to load: the final model, the best one, or the latest checkpoint.
 MODEL_CHOICES = ("final", "best", "last-checkpoint")
@@ -142,15 +142,6 @@ def play(
     return rollouts
 
 
-def default_seed(settings: TrainSettings) -> int:
-    """
-    The seed ``enjoy`` uses by default: that of the run's evaluations.
-
-    :param settings: The run's settings
-    """
-    return settings.seed + EVAL_SEED_OFFSET
-
-
 def write_recording(frames: list[np.ndarray], path: str, fps: int) -> None:
     """
     Write frames as a GIF (``.gif``) or a video (``.mp4``, ``.webm``, ...; needs ``imageio-ffmpeg``).
@@ -163,9 +154,7 @@ def write_recording(frames: list[np.ndarray], path: str, fps: int) -> None:
 
     if not frames:
         raise ValueError("no frames to write: the environment returned no image (does it support render_mode='rgb_array'?)")
-    directory = os.path.dirname(path)
-    if directory:
-        os.makedirs(directory, exist_ok=True)
+    os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
     if path.lower().endswith(".gif"):
         imageio.v3.imwrite(path, np.stack(frames), extension=".gif", duration=1000.0 / fps, loop=0)
         return

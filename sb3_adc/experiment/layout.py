@@ -217,13 +217,9 @@ def run_ids(log_folder: str, algo: str, env_id: str) -> list[int]:
     :param env_id: The environment id
     """
     prefix = env_name(env_id) + "_"
-    folder = os.path.join(log_folder, algo)
-    ids = []
-    for path in glob.glob(os.path.join(glob.escape(folder), glob.escape(prefix) + "[0-9]*")):
-        suffix = os.path.basename(path)[len(prefix) :]
-        if suffix.isdigit() and os.path.isdir(path):
-            ids.append(int(suffix))
-    return sorted(ids)
+    paths = glob.glob(os.path.join(glob.escape(os.path.join(log_folder, algo)), glob.escape(prefix) + "[0-9]*"))
+    suffixes = [os.path.basename(path)[len(prefix) :] for path in paths if os.path.isdir(path)]
+    return sorted(int(suffix) for suffix in suffixes if suffix.isdigit())
 
 
 def new_run_dir(log_folder: str, algo: str, env_id: str) -> str:
@@ -288,6 +284,17 @@ class Checkpoint:
         remove_files(self.files)
 
 
+class _RunPath:
+    """A path in a run's folder, read as an attribute of :class:`RunLayout` (``{env}``: :func:`env_name`)."""
+
+    def __init__(self, *parts: str):
+        self.parts = parts
+
+    def __get__(self, layout: RunLayout, owner: type | None = None) -> str:
+        name = env_name(layout.env_id)
+        return os.path.join(layout.run_dir, *(part.format(env=name) for part in self.parts))
+
+
 @dataclass(frozen=True)
 class RunLayout:
     """
@@ -300,38 +307,14 @@ class RunLayout:
     run_dir: str
     env_id: str
 
-    @property
-    def params_dir(self) -> str:
-        """``{run_dir}/{env_name}``: configuration, statistics and final evaluation."""
-        return os.path.join(self.run_dir, env_name(self.env_id))
-
-    @property
-    def final_model(self) -> str:
-        return os.path.join(self.run_dir, f"{env_name(self.env_id)}.zip")
-
-    @property
-    def best_model(self) -> str:
-        return os.path.join(self.run_dir, "best_model.zip")
-
-    @property
-    def evaluations(self) -> str:
-        return os.path.join(self.run_dir, "evaluations.npz")
-
-    @property
-    def config(self) -> str:
-        return os.path.join(self.params_dir, "config.yml")
-
-    @property
-    def args(self) -> str:
-        return os.path.join(self.params_dir, "args.yml")
-
-    @property
-    def vecnormalize(self) -> str:
-        return os.path.join(self.params_dir, "vecnormalize.pkl")
-
-    @property
-    def final_evaluation(self) -> str:
-        return os.path.join(self.params_dir, "final_evaluation.json")
+    params_dir = _RunPath("{env}")  # configuration, statistics and final evaluation
+    final_model = _RunPath("{env}.zip")
+    best_model = _RunPath("best_model.zip")
+    evaluations = _RunPath("evaluations.npz")
+    config = _RunPath("{env}", "config.yml")
+    args = _RunPath("{env}", "args.yml")
+    vecnormalize = _RunPath("{env}", "vecnormalize.pkl")
+    final_evaluation = _RunPath("{env}", "final_evaluation.json")
 
     def monitor_files(self) -> list[str]:
         """The existing monitor CSVs, by environment index."""
@@ -340,18 +323,10 @@ class RunLayout:
 
     def checkpoint(self, timesteps: int) -> Checkpoint:
         """The files of the checkpoint at a timestep."""
-
-        def path(kind: str, extension: str) -> str:
-            return os.path.join(self.run_dir, f"{CHECKPOINT_PREFIX}_{kind}{timesteps}_steps.{extension}")
-
-        return Checkpoint(
-            timesteps,
-            path("", "zip"),
-            path("replay_buffer_", "pkl"),
-            path("vecnormalize_", "pkl"),
-            path("continuation_", "pkl"),
-            path("manifest_", "json"),
-        )
+        kinds = ("", "replay_buffer_", "vecnormalize_", "continuation_", "manifest_")
+        names = [f"{CHECKPOINT_PREFIX}_{kind}{timesteps}_steps" for kind in kinds]
+        extensions = (".zip", ".pkl", ".pkl", ".pkl", ".json")
+        return Checkpoint(timesteps, *(os.path.join(self.run_dir, n + ext) for n, ext in zip(names, extensions, strict=True)))
 
     def checkpoints(self) -> list[Checkpoint]:
         """The checkpoints present, oldest first."""

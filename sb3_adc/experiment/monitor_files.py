@@ -44,8 +44,7 @@ def truncate_monitor(path: str, steps: int) -> int:
         lines = lines[:-1]  # `Monitor` writes whole lines: a line without its end was cut short
     if len(lines) < 2:  # killed while `Monitor` wrote its header: write it again
         header_line = "#" + json.dumps({"t_start": time.time()}) + "\n"
-        columns_line = ",".join(("r", "l", "t", TOTAL_STEPS_KEY)) + "\r\n"
-        write_atomically(path, lambda stream: stream.writelines([header_line, columns_line]))
+        write_atomically(path, lambda stream: stream.writelines([header_line, f"r,l,t,{TOTAL_STEPS_KEY}\r\n"]))
         return 0
     if not lines[0].startswith("#"):
         raise DamagedFileError(path, "the first line is not a monitor header (`#{...}`)")

@@ -48,7 +48,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def register_algorithms() -> None:
-    """Add sb3-adc's algorithms (``adc``, ``vanilla_ac``, ``ddpg`` with a critic learning rate, ``td3`` with an
+    """
+    Add sb3-adc's algorithms (``adc``, ``vanilla_ac``, ``ddpg`` with a critic learning rate, ``td3`` with an
     averaged actor, and every name added to ``sb3_adc.config.algorithms.ALGORITHMS``) to ``rl_zoo3.utils.ALGOS``,
     and the search spaces of ``adc`` and ``vanilla_ac`` to ``rl_zoo3.hyperparams_opt.HYPERPARAMS_SAMPLER``
     (:func:`~sb3_adc.experiment.samplers.register_zoo_samplers`)."""
