@@ -133,7 +133,7 @@ class Experiment:
         """
         One benchmark grid per configuration.
 
-        :param tiny: The first environment and seed only, :data:`TINY_TIMESTEPS` steps, one evaluation episode
+        :param tiny: The first environment and seed only, :data:`TINY_TIMESTEPS` steps, two evaluations of one episode
         :param runs: Folder of the runs instead of :attr:`runs`
         """
         return {
@@ -145,6 +145,7 @@ class Experiment:
                 n_timesteps=TINY_TIMESTEPS if tiny else self.n_timesteps,
                 overrides={**config.overrides, **self._diagnostics_callback(os.path.join(runs or self.runs, name), tiny)},
                 conf_folder=config.hyperparams,
+                eval_freq=TINY_TIMESTEPS // 2 if tiny else None,
                 eval_episodes=1 if tiny else self.eval_episodes,
                 final_eval_episodes=1 if tiny else self.final_eval_episodes,
             )

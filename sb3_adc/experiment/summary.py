@@ -18,7 +18,13 @@ from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CS
 from sb3_adc.experiment.plots import plot_results
 from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc.experiment.results import read_table
-from sb3_adc.experiment.statistics import final_performance, interval_estimates, iqm_and_mean, time_to_threshold
+from sb3_adc.experiment.statistics import (
+    final_performance,
+    interval_estimates,
+    iqm_and_mean,
+    probability_of_improvement_metric,
+    time_to_threshold,
+)
 from sb3_adc.experiment.test_sets import write_summary as write_test_summary
 from sb3_adc.extras import requires_extra
 
@@ -27,7 +33,6 @@ if TYPE_CHECKING:
 
 with requires_extra("experiment", "the experiment summaries"):
     import pandas as pd
-    from rliable import metrics
 
 #: Columns of the formatted summary but the last, which names the reference.
 _DISPLAY_COLUMNS = ["env", "configuration", "runs", "final IQM [95% CI]", "final mean", "across-seed std", "AUC IQM [95% CI]"]
@@ -73,7 +78,7 @@ def summary(
         area_points, area_intervals = interval_estimates(areas, iqm_and_mean, reps, 1)
         base = scores.get(reference) if reference is not None else None
         pairs = {} if base is None else {n: (base, s) for n, s in scores.items() if n != reference and s.shape == base.shape}
-        improvement = interval_estimates(pairs, metrics.probability_of_improvement, reps, 2) if pairs else ({}, {})
+        improvement = interval_estimates(pairs, probability_of_improvement_metric, reps, 2) if pairs else ({}, {})
         for name in scores:
             n_runs = scores[name].shape[0]
             row: dict[str, Any] = {"env": env, "config": name, "n_runs": n_runs}

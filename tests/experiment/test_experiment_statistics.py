@@ -11,8 +11,10 @@ from sb3_adc.experiment.statistics import (
     episode_variance,
     evaluation_times,
     final_performance,
+    iqm,
     learning_curves,
     markdown_table,
+    probability_of_improvement_metric,
     time_to_threshold,
     wallclock_curves,
 )
@@ -54,6 +56,21 @@ def test_final_performance_iqm_and_mean_with_cis():
     markdown = markdown_table(table)
     assert markdown.splitlines()[0] == "| Environment | Algorithm | Runs | IQM [95% CI] | Mean [95% CI] |"
     assert f"| Pendulum-v1 | adc | 6 | {table.iqm[0]:.1f} [" in markdown
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (3, 1), (4, 1), (10, 1), (7, 3), (10, 4)])
+def test_the_numpy_metrics_equal_rliables(shape):
+    """The bootstrap's IQM and probability of improvement give rliable's numbers, with ties and rounded scores."""
+    rliable = pytest.importorskip("rliable.metrics")
+    rng = np.random.default_rng(sum(shape))
+    for rounding in (None, 0):
+        x, y = rng.normal(0, 2, shape), rng.normal(0.5, 2, (shape[0] + 2, shape[1]))
+        if rounding is not None:  # ties inside and across the two samples
+            x, y = np.round(x, rounding), np.round(y, rounding)
+        assert iqm(x) == rliable.aggregate_iqm(x)
+        np.testing.assert_array_equal(iqm(x, axis=0), trim_mean(x, 0.25, axis=0))
+        for pair in ((x, y), (y, x), (x, x)):
+            assert probability_of_improvement_metric(*pair) == rliable.probability_of_improvement(*pair)
 
 
 def test_intervals_are_reproducible_and_leave_numpy_alone():
