@@ -94,6 +94,10 @@ def check_corridor_does_not_overlap(
         # A sample fails when its nearest wall face is closer than `required`: walls further than that (plus the
         # wall's half thickness, and a margin for the rounding of the subtraction) cannot change the outcome.
         reach = (required + wall_thickness / 2.0) * (1.0 + 1e-6) + 1e-9
+        # Most corridors pass: the smallest distance decides it (the smallest clearance is the smallest distance
+        # less the half thickness, the same rounding), and the per-sample distances only name the worst sample.
+        if geometry.nearest_segment_distance(samples, walls, reach) - wall_thickness / 2.0 >= required:
+            return
         clearances = geometry.nearest_segment_distances(samples, walls, reach)
     else:
         block = max(1, _OVERLAP_CHECK_BLOCK // len(walls))
@@ -213,3 +217,29 @@ def check_obstacle_placement(
             f"the {obstacle.shape} at ({obstacle.x:g}, {obstacle.y:g}) is {gap:.3g} m from the start position "
             f"({start.x:g}, {start.y:g}); obstacles must leave {OBSTACLE_START_CLEARANCE:g} m free around the start.",
         )
+
+
+def misplaced_obstacles(
+    obstacles: list[Obstacle], walls: np.ndarray, wall_thickness: float, corridor: Corridor, start: StartPose
+) -> list[int]:
+    """
+    The indices of the obstacles of a corridor course that :func:`check_obstacle_placement` refuses, from the same
+    numbers (every obstacle's distances to the centre line and to the walls measured at once).
+
+    :param obstacles: The obstacles
+    :param walls: ``(n, 4)`` segments of the course's walls
+    :param wall_thickness: Thickness of the walls [m]
+    :param corridor: The course's corridor
+    :param start: The start pose
+    """
+    if not obstacles:
+        return []
+    centres = np.array([[obstacle.x, obstacle.y] for obstacle in obstacles])
+    centre_segments = geometry.polyline_segments(corridor.centerline, closed=True)
+    inside = (geometry.point_segment_distances(centres, centre_segments).min(axis=1) <= corridor.width / 2.0).tolist()
+    in_wall = (geometry.point_segment_distances(centres, walls).min(axis=1) <= wall_thickness / 2.0).tolist()
+    return [
+        i
+        for i, obstacle in enumerate(obstacles)
+        if not inside[i] or in_wall[i] or obstacle.distance(start.x, start.y) < OBSTACLE_START_CLEARANCE
+    ]

@@ -39,6 +39,7 @@ from sb3_adc_envs.lidar_course.course_checks import (
     check_obstacle_placement,
     check_walls,
     corridor_walls,
+    misplaced_obstacles,
 )
 from sb3_adc_envs.lidar_course.course_yaml import CourseYamlError, load_course_yaml
 
@@ -148,9 +149,10 @@ def with_obstacles(course: Course, obstacles: Any) -> Course:
     if course.corridor is None or course.obstacles:
         raise ValueError(f"`course`: {course.name!r} must have a corridor and no obstacles yet.")
     parsed = _parse_obstacles(course.source, obstacles, course.wall_thickness)
-    for i, obstacle in enumerate(parsed):
+    # All obstacles measured at once; the first misplaced one raises check_obstacle_placement's error.
+    for i in misplaced_obstacles(parsed, course.walls, course.wall_thickness, course.corridor, course.start):
         check_obstacle_placement(
-            course.source, f"obstacles[{i}]", obstacle, course.walls, course.wall_thickness, course.corridor, [], course.start
+            course.source, f"obstacles[{i}]", parsed[i], course.walls, course.wall_thickness, course.corridor, [], course.start
         )
     return dataclasses.replace(course, obstacles=tuple(parsed))
 

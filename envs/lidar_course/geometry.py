@@ -21,9 +21,9 @@ def polyline_segments(points: np.ndarray, closed: bool) -> np.ndarray:
     :param closed: Whether the last vertex joins the first
     :return: ``(n, 4)`` segments if ``closed``, else ``(n - 1, 4)``
     """
-    ends = np.roll(points, -1, axis=0) if closed else points[1:]
-    starts = points if closed else points[:-1]
-    return np.hstack([starts, ends])
+    if closed:  # np.roll's result, without its overhead (this runs several times per procedural layout)
+        return np.concatenate([points, np.concatenate([points[1:], points[:1]])], axis=1)
+    return np.concatenate([points[:-1], points[1:]], axis=1)
 
 
 def segment_lengths(segments: np.ndarray) -> np.ndarray:
@@ -49,18 +49,27 @@ def round_corners(points: np.ndarray, radius: float) -> np.ndarray:
     :return: ``(m, 2)`` vertices of the rounded closed polyline
     :raises ValueError: if an edge is too short for the arcs at its two ends
     """
-    n = len(points)
-    rounded: list[np.ndarray] = []
-    for i in range(n):
-        corner = points[i]
-        to_previous = points[i - 1] - corner
-        to_next = points[(i + 1) % n] - corner
-        length_previous = float(np.hypot(*to_previous))
-        length_next = float(np.hypot(*to_next))
-        u = to_previous / length_previous
-        w = to_next / length_next
-        # Interior angle between the two edges at this corner.
-        interior = math.acos(float(np.clip(np.dot(u, w), -1.0, 1.0)))
+    # Every corner's numbers at once where they are element by element (the same bits as corner by corner), the
+    # rest in Python floats: the arithmetic of a corner-by-corner loop over NumPy scalars, without their overhead.
+    points = np.asarray(points, dtype=float)
+    to_previous = points[np.arange(-1, len(points) - 1)] - points
+    to_next = points[np.arange(1, len(points) + 1) % len(points)] - points
+    lengths_previous = np.hypot(to_previous[:, 0], to_previous[:, 1])
+    lengths_next = np.hypot(to_next[:, 0], to_next[:, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):  # corners skipped below (straight ones) may divide by 0
+        u = to_previous / lengths_previous[:, None]
+        w = to_next / lengths_next[:, None]
+        halves = u + w
+        bisectors = (halves / np.hypot(halves[:, 0], halves[:, 1])[:, None]).tolist()
+    # Each arc: (centre x, centre y, first angle, sweep, samples).
+    arcs: list[tuple[float, float, float, float, int]] = []
+    lengths = zip(lengths_previous.tolist(), lengths_next.tolist(), strict=True)
+    rows = zip(points.tolist(), u.tolist(), w.tolist(), lengths, bisectors, strict=True)
+    for i, (corner, (ux, uy), (wx, wy), (length_previous, length_next), (bx, by)) in enumerate(rows):
+        # Interior angle between the two edges at this corner (np.dot: the same rounding as the loop's).
+        cosine = float(np.dot(u[i], w[i]))
+        cosine = -1.0 if cosine < -1.0 else 1.0 if cosine > 1.0 else cosine
+        interior = math.acos(cosine)
         if math.pi - interior < 1e-9:
             continue  # collinear vertex: nothing to round
         cut = radius / math.tan(interior / 2.0)
@@ -70,17 +79,35 @@ def round_corners(points: np.ndarray, radius: float) -> np.ndarray:
                 f"radius {radius:g} m, but its edges are {length_previous:.3g} m and {length_next:.3g} m long "
                 "(each may give at most half its length)"
             )
-        bisector = (u + w) / np.hypot(*(u + w))
-        centre = corner + bisector * (radius / math.sin(interior / 2.0))
-        start = corner + u * cut
-        end = corner + w * cut
-        angle_start = math.atan2(start[1] - centre[1], start[0] - centre[0])
-        angle_end = math.atan2(end[1] - centre[1], end[0] - centre[0])
+        reach = radius / math.sin(interior / 2.0)
+        cx, cy = corner[0] + bx * reach, corner[1] + by * reach
+        angle_start = math.atan2(corner[1] + uy * cut - cy, corner[0] + ux * cut - cx)
+        angle_end = math.atan2(corner[1] + wy * cut - cy, corner[0] + wx * cut - cx)
         sweep = (angle_end - angle_start + math.pi) % (2.0 * math.pi) - math.pi
-        n_arc = max(2, math.ceil(abs(sweep) / ARC_STEP) + 1)
-        angles = angle_start + np.linspace(0.0, sweep, n_arc)
-        rounded.append(centre + radius * np.column_stack([np.cos(angles), np.sin(angles)]))
-    return np.vstack(rounded)
+        arcs.append((cx, cy, angle_start, sweep, max(2, math.ceil(abs(sweep) / ARC_STEP) + 1)))
+    if not arcs:
+        raise ValueError("need at least one array to concatenate")  # as np.vstack of no arcs
+    return _arc_points(np.array(arcs), radius)
+
+
+def _arc_points(arcs: np.ndarray, radius: float) -> np.ndarray:
+    # The points of arcs (rows: centre x, centre y, first angle, sweep, samples), all at once, with the numbers of
+    # ``first angle + np.linspace(0.0, sweep, samples)`` (its steps ``i * (sweep / (samples - 1))``, its last
+    # point the sweep itself).
+    counts = arcs[:, 4].astype(np.int64)
+    ends = np.cumsum(counts)
+    steps = arcs[:, 3] / (counts - 1)
+    if np.any(steps == 0.0):  # linspace's other arithmetic (a zero or subnormal step): arc by arc
+        rows = zip(arcs[:, 2], arcs[:, 3], counts, strict=True)
+        angles = np.concatenate([first + np.linspace(0.0, sweep, n) for first, sweep, n in rows])
+    else:
+        offsets = np.arange(ends[-1], dtype=float) - np.repeat(ends - counts, counts)
+        offsets *= np.repeat(steps, counts)
+        offsets += 0.0
+        offsets[ends - 1] = arcs[:, 3]
+        angles = np.repeat(arcs[:, 2], counts) + offsets
+    centres = np.repeat(arcs[:, :2], counts, axis=0)
+    return centres + radius * np.column_stack([np.cos(angles), np.sin(angles)])
 
 
 def offset_closed_polyline(points: np.ndarray, offset: float) -> np.ndarray:
@@ -91,11 +118,11 @@ def offset_closed_polyline(points: np.ndarray, offset: float) -> np.ndarray:
     :param offset: Signed distance [m]: positive to the left of the direction of travel, negative to the right
     :return: ``(n, 2)`` vertices of the offset polyline
     """
-    directions = np.roll(points, -1, axis=0) - points
+    directions = np.concatenate([points[1:], points[:1]]) - points
     directions /= np.hypot(directions[:, 0], directions[:, 1])[:, None]
     normals = np.column_stack([-directions[:, 1], directions[:, 0]])
     # At vertex i the incoming edge is i - 1 and the outgoing edge is i.
-    incoming = np.roll(normals, 1, axis=0)
+    incoming = np.concatenate([normals[-1:], normals[:-1]])
     miter = incoming + normals
     miter /= np.hypot(miter[:, 0], miter[:, 1])[:, None]
     scale = offset / np.einsum("ij,ij->i", miter, normals)
@@ -142,28 +169,52 @@ def nearest_segment_distances(points: np.ndarray, segments: np.ndarray, reach: f
     For each point, the distance to its nearest segment, computed only where it is at most ``reach``.
 
     The same numbers as ``point_segment_distances(points, segments).min(axis=1)`` (bit for bit) for every point
-    with a segment within ``reach``, and ``inf`` for the others; only the pairs of a point and a segment whose
-    bounding box, widened by ``reach``, shares a cell of a grid ``reach`` wide with the point are measured. On
-    the centre line of a corridor against its walls, a few percent of all pairs.
+    with a segment within ``reach``, and a larger number (``inf`` or a distance over ``reach``) for the others; only
+    the pairs of a point and a segment whose bounding box, widened by ``reach``, shares a cell of a grid half
+    ``reach`` wide with the point are measured. On the centre line of a corridor against its walls, a few percent
+    of all pairs.
 
     :param points: ``(m, 2)`` points, ``m >= 1``
     :param segments: ``(n, 4)`` segments, ``n >= 1``
     :param reach: Largest distance needed [m], ``> 0``
     :return: ``(m,)`` distances
     """
+    pair_points, distances = _near_pairs(points, segments, reach)
+    nearest = np.full(len(points), np.inf)
+    np.minimum.at(nearest, pair_points, distances)
+    return nearest
+
+
+def nearest_segment_distance(points: np.ndarray, segments: np.ndarray, reach: float) -> float:
+    """
+    The smallest of :func:`nearest_segment_distances`, without the per-point minima: the distance from the points
+    to the segments where it is at most ``reach`` (bit for bit that of the brute force), else a larger number.
+
+    :param points: ``(m, 2)`` points, ``m >= 1``
+    :param segments: ``(n, 4)`` segments, ``n >= 1``
+    :param reach: Largest distance needed [m], ``> 0``
+    """
+    _, distances = _near_pairs(points, segments, reach)
+    return float(distances.min()) if len(distances) else math.inf
+
+
+def _near_pairs(points: np.ndarray, segments: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    # The pairs (point index, distance) of nearest_segment_distances: every pair within `reach`, and some others.
     points = np.asarray(points, dtype=float)
     segments = np.asarray(segments, dtype=float)
-    # Conservative cells: a pair within `reach` always shares one, whatever the rounding of the cell indices.
+    # Conservative cells: a pair within `reach` always shares one, whatever the rounding of the cell indices. Cells
+    # half as wide as `margin`: fewer pairs to measure (most of the time), for a few more cells per segment.
     margin = reach * (1.0 + 1e-6) + 1e-9
+    cell = margin / 2.0
     origin = points.min(axis=0)
-    cells = np.floor((points - origin) / margin).astype(np.int64)
+    cells = np.floor((points - origin) / cell).astype(np.int64)
     n_columns, n_rows = (int(value) + 1 for value in cells.max(axis=0))
     keys = cells[:, 0] * n_rows + cells[:, 1]
     order = np.argsort(keys, kind="stable")
     bounds = np.searchsorted(keys[order], np.arange(n_columns * n_rows + 1))
     # The cells each segment's widened bounding box covers, within the points' grid.
-    low = np.floor((np.minimum(segments[:, :2], segments[:, 2:]) - margin - origin) / margin).astype(np.int64)
-    high = np.floor((np.maximum(segments[:, :2], segments[:, 2:]) + margin - origin) / margin).astype(np.int64)
+    low = np.floor((np.minimum(segments[:, :2], segments[:, 2:]) - margin - origin) / cell).astype(np.int64)
+    high = np.floor((np.maximum(segments[:, :2], segments[:, 2:]) + margin - origin) / cell).astype(np.int64)
     low = np.maximum(low, 0)
     high = np.minimum(high, [n_columns - 1, n_rows - 1])
     spans = np.maximum(high - low + 1, 0)
@@ -184,9 +235,7 @@ def nearest_segment_distances(points: np.ndarray, segments: np.ndarray, reach: f
         dy[pair_segments],
         divisors[pair_segments],
     )
-    nearest = np.full(len(points), np.inf)
-    np.minimum.at(nearest, pair_points, distances)
-    return nearest
+    return pair_points, distances
 
 
 def closest_segment(point: np.ndarray, segments: np.ndarray) -> tuple[int, float]:

@@ -101,8 +101,7 @@ class Lidar:
         hits = pybullet.rayTestBatch(ray_from, ray_to, collisionFilterMask=self.collision_mask, physicsClientId=client)
         per_reading = self.rays_per_reading
         if per_reading == 1:
-            for i, hit in enumerate(hits):
-                out[i] = hit[2]
+            out[:] = [hit[2] for hit in hits]
         else:
             # Each reading: the nearest of its rays' hits (a ray that hits nothing has fraction 1).
             for i in range(len(out)):

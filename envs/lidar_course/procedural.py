@@ -17,6 +17,7 @@ obstacles are ``obstacle_spacing`` apart along the loop, no two of them close th
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -154,7 +155,8 @@ class CourseGenerator:
             segments = geometry.polyline_segments(centerline, closed=True)
             longest = int(np.argmax(geometry.segment_lengths(segments)))
             middle = (segments[longest, :2] + segments[longest, 2:]) / 2.0
-            centerline = np.vstack([middle, np.roll(centerline, -(longest + 1), axis=0)])
+            first = (longest + 1) % len(centerline)  # np.roll(centerline, -(longest + 1), axis=0), faster
+            centerline = np.vstack([middle, centerline[first:], centerline[:first]])
             heading = math.degrees(
                 math.atan2(segments[longest, 3] - segments[longest, 1], segments[longest, 2] - segments[longest, 0])
             )
@@ -187,12 +189,17 @@ class CourseGenerator:
                     break
         obstacles = []
         min_gap = self.min_gap(robot_radius)
+        # In Python floats: the arithmetic of NumPy's 2-vectors, element by element, without their overhead.
+        vertices, arc_lengths = closed.tolist(), arc.tolist()
         for s in sorted(places):
-            i = min(int(np.searchsorted(arc, s, side="right")) - 1, len(centerline) - 1)
-            tangent = closed[i + 1] - closed[i]
-            tangent /= math.hypot(*tangent)
-            point = closed[i] + tangent * (s - arc[i])
-            normal = np.array([-tangent[1], tangent[0]])
+            i = min(bisect.bisect_right(arc_lengths, s) - 1, len(centerline) - 1)
+            (x0, y0), (x1, y1) = vertices[i], vertices[i + 1]
+            tangent_x, tangent_y = x1 - x0, y1 - y0
+            norm = math.hypot(tangent_x, tangent_y)
+            tangent_x, tangent_y = tangent_x / norm, tangent_y / norm
+            along = s - arc_lengths[i]
+            point_x, point_y = x0 + tangent_x * along, y0 + tangent_y * along
+            normal_x, normal_y = -tangent_y, tangent_x
             free_side = 1.0 if rng.random() < 0.5 else -1.0  # the side of the corridor left open
             shape = ("box", "cylinder", "wall")[int(rng.integers(3))]
             protrusion_max = width - min_gap  # how far an obstacle may reach across from the closed side
@@ -200,10 +207,10 @@ class CourseGenerator:
                 # A stub from the closed side's wall, across the corridor, sunk one wall thickness into the wall.
                 protrusion = float(rng.uniform(2.0 * self.wall_thickness, protrusion_max))
                 offset = -free_side * (width / 2.0 - protrusion / 2.0 + self.wall_thickness / 2.0)
-                centre = point + normal * offset
-                yaw = math.degrees(math.atan2(normal[1], normal[0]))
+                centre = [point_x + normal_x * offset, point_y + normal_y * offset]
+                yaw = math.degrees(math.atan2(normal_y, normal_x))
                 obstacles.append(
-                    {"shape": "wall", "position": centre.tolist(), "length": protrusion + self.wall_thickness, "yaw_deg": yaw}
+                    {"shape": "wall", "position": centre, "length": protrusion + self.wall_thickness, "yaw_deg": yaw}
                 )
                 continue
             if shape == "box":
@@ -219,13 +226,12 @@ class CourseGenerator:
             # Centre across the corridor: from the closed side's wall face to where the gap is exactly `min_gap`.
             low = -width / 2.0 + _INSIDE
             lateral = float(rng.uniform(low, max(low, width / 2.0 - min_gap - reach)))  # max: rounding of `scale`
-            centre = point + normal * (free_side * lateral)
+            across = free_side * lateral
+            centre = [point_x + normal_x * across, point_y + normal_y * across]
             if shape == "box":
-                obstacles.append(
-                    {"shape": "box", "position": centre.tolist(), "size": (size * scale).tolist(), "yaw_deg": yaw}
-                )
+                obstacles.append({"shape": "box", "position": centre, "size": (size * scale).tolist(), "yaw_deg": yaw})
             else:
-                obstacles.append({"shape": "cylinder", "position": centre.tolist(), "radius": reach})
+                obstacles.append({"shape": "cylinder", "position": centre, "radius": reach})
         return obstacles
 
 
@@ -266,7 +272,9 @@ def corridor_course(data: dict[str, Any], source: str) -> Course:
     if np.any(np.hypot(*np.diff(centerline, axis=0).T) <= 1e-9):
         raise CourseError(source, "corridor.centerline", "a point repeats the point before it")
     check_extent(source, "corridor", centerline[:, 0], centerline[:, 1], width / 2.0 + wall_thickness, "the corridor's walls")
-    if np.allclose(centerline[0], centerline[-1]):
+    (first_x, first_y), (last_x, last_y) = centerline[0].tolist(), centerline[-1].tolist()
+    # np.allclose(centerline[0], centerline[-1]) (finite numbers), in Python floats.
+    if abs(first_x - last_x) <= 1e-8 + 1e-5 * abs(last_x) and abs(first_y - last_y) <= 1e-8 + 1e-5 * abs(last_y):
         centerline = centerline[:-1]
     if len(centerline) < 3:
         raise CourseError(source, "corridor.centerline", "a closed corridor needs at least 3 distinct points")

@@ -211,18 +211,19 @@ class CourseSimulation:
         half_height = WALL_HEIGHT / 2.0
         create = pybullet.createCollisionShape
         box = pybullet.GEOM_BOX
-        shapes: list[int] = []
-        positions: list[list[float]] = []
-        orientations: list[list[float]] = []
-        for x0, y0, x1, y1 in course.walls.tolist():
-            length = math.hypot(x1 - x0, y1 - y0)
-            yaw = math.atan2(y1 - y0, x1 - x0)
-            # Half a thickness longer at both ends, so that the walls of a polyline overlap at their joints.
-            shapes.append(
-                create(box, halfExtents=[length / 2.0 + thickness / 2.0, thickness / 2.0, half_height], physicsClientId=client)
-            )
-            positions.append([(x0 + x1) / 2.0, (y0 + y1) / 2.0, half_height])
-            orientations.append([0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)])
+        walls = course.walls
+        # The walls' centres at once (the same numbers as one by one); their lengths and yaws with math's functions.
+        positions = np.column_stack(
+            [(walls[:, 0] + walls[:, 2]) / 2.0, (walls[:, 1] + walls[:, 3]) / 2.0, np.full(len(walls), half_height)]
+        ).tolist()
+        deltas = (walls[:, 2:] - walls[:, :2]).tolist()
+        half_thickness = thickness / 2.0
+        hypot, atan2, sin, cos = math.hypot, math.atan2, math.sin, math.cos
+        # Half a thickness longer at both ends, so that the walls of a polyline overlap at their joints.
+        extents = [[hypot(dx, dy) / 2.0 + half_thickness, half_thickness, half_height] for dx, dy in deltas]
+        shapes = [create(box, halfExtents=half_extents, physicsClientId=client) for half_extents in extents]
+        yaws = [atan2(dy, dx) / 2.0 for dx, dy in deltas]
+        orientations = [[0.0, 0.0, sin(half_yaw), cos(half_yaw)] for half_yaw in yaws]
         for obstacle in course.obstacles:
             if obstacle.shape == "cylinder":
                 shape = create(
