@@ -15,8 +15,8 @@ Usage::
     python benchmarks/training_throughput.py --n-intervals 20 60 100 140 --designs paper legendre
                                                         # the paper's setting at each interval count
     python benchmarks/training_throughput.py --fast-update --steps 2000 --warmup 500 --clock cpu
-                                                        # ADC's fast update path against its plain path and
-                                                        # SB3's TD3 and DDPG; writes training_throughput_fast.*
+                                                        # ADC's fast and plain update paths, SB3's TD3 and DDPG,
+                                                        # update_limit.py's loop; writes training_throughput_fast.*
 
 The ``--fast-update`` mode times ADC with ``fast_update=True`` and ``False`` (the default) against SB3's TD3 and
 DDPG with the update settings of the lidar ``-v1`` entries (``sb3_adc/LidarObstacleCourse-v1`` in
@@ -47,6 +47,7 @@ import stable_baselines3
 import torch as th
 from stable_baselines3 import DDPG, TD3
 from stable_baselines3.common.base_class import BaseAlgorithm
+from update_limit import TightLoop
 
 import sb3_adc
 from sb3_adc import ADC
@@ -90,8 +91,8 @@ def make_model(model: str, setting: Setting, env_id: str, seed: int) -> BaseAlgo
     return ADC("MlpPolicy", env, policy_kwargs=policy_kwargs, **common)
 
 
-#: The models of ``--fast-update``.
-FAST_MODELS = ["ADC fast", "ADC plain", "TD3", "DDPG"]
+#: The models of ``--fast-update``; "tight loop" is :class:`update_limit.TightLoop`, the same update without SB3.
+FAST_MODELS = ["ADC fast", "ADC plain", "TD3", "DDPG", "tight loop"]
 
 
 @dataclass(frozen=True)
@@ -117,8 +118,10 @@ FAST_SETTINGS = [
 def make_fast_model(model: str, setting: FastSetting, env_id: str, seed: int) -> BaseAlgorithm:
     """A model of ``--fast-update``: the ``-v1`` entries' update settings (see the module's docstring)."""
     common = dict(COMMON, learning_starts=setting.batch_size, batch_size=setting.batch_size, gamma=0.98, n_steps=3, seed=seed)
-    env = gym.make(env_id)
     critic_layers = [*setting.critic_arch, *setting.head_arch]
+    if model == "tight loop":
+        return TightLoop(env_id, setting.actor_arch, critic_layers, setting.batch_size, seed)
+    env = gym.make(env_id)
     baseline_arch = dict(pi=setting.actor_arch, qf=critic_layers)
     if model == "TD3":
         return TD3("MlpPolicy", env, policy_kwargs=dict(net_arch=baseline_arch), **common)
@@ -138,10 +141,7 @@ Maker = Callable[[str, Any, str, int], BaseAlgorithm]
 def time_training(make: Callable[[], BaseAlgorithm], args: argparse.Namespace) -> float:
     """
     Steps per second of ``learn(args.steps)`` after ``args.warmup`` steps (which fill the buffer past
-    ``learning_starts``), on ``args.clock``.
-
-    SB3's ``learn`` itself, not the experiment engine: what is timed is the algorithm's own cost, without the
-    engine's evaluations, checkpoints and monitor files.
+    ``learning_starts``), on ``args.clock``: SB3's ``learn`` itself, without the engine's evaluations and files.
     """
     model, clock = make(), CLOCKS[args.clock]
     model.learn(args.warmup)
@@ -181,7 +181,8 @@ def run(
 def fast_cells(rows: list[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
     """The ``--fast-update`` table's header and rows: median steps/s [min-max over the repeats] (ratio to TD3's)."""
     labels = {"ADC fast": "ADC fast_update", "ADC plain": "ADC plain", "TD3": "SB3 TD3", "DDPG": "SB3 DDPG"}
-    header = ["setting", *(f"{labels[m]} steps/s (/ TD3)" for m in FAST_MODELS), "ADC fast / plain"]
+    header = ["setting", *(f"{labels.get(m, m)} steps/s (/ TD3)" for m in FAST_MODELS), "ADC fast / plain"]
+    header.append("ADC fast / tight loop")
     body = []
     for r in rows:
         cells = [r["setting"]]
@@ -189,7 +190,7 @@ def fast_cells(rows: list[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
             key = model.replace(" ", "_")
             runs = r[f"{key}_runs"]
             cells.append(f"{r[f'{key}_steps_per_s']:.0f} [{min(runs):.0f}-{max(runs):.0f}] ({r[f'{key}_over_td3']:.2f})")
-        cells.append(f"{r['ADC_fast_steps_per_s'] / r['ADC_plain_steps_per_s']:.2f}")
+        cells += [f"{r['ADC_fast_steps_per_s'] / r[f'{m}_steps_per_s']:.2f}" for m in ("ADC_plain", "tight_loop")]
         body.append(cells)
     return header, body
 
