@@ -9,7 +9,7 @@ YAML reader: nothing in it is executed)::
     envs: [sb3_adc/NoisyPendulum-v1]
     seeds: {start: 1000, stop: 1010}        # or a list
     n_timesteps: 20000                      # null: each entry's own budget
-    evaluation: {episodes: 5, final_episodes: 20}
+    evaluation: {episodes: 5, final_episodes: 20}   # and optionally every: <steps> (default: 20 evaluations a run)
     configs:                                # name -> algorithm, hyperparameter folder, overrides, figure label
       adc_shipped: {algo: adc}
       td3_tuned: {algo: td3, hyperparams: ../results/fair_tuning/hyperparams, label: TD3 (shipped)}
@@ -53,7 +53,7 @@ from sb3_adc.experiment.tuning_grid import Tuning, read_tuning
 KEYS: tuple[str, ...] = ("description", "envs", "seeds", "n_timesteps", "evaluation", "configs", "reference", "threshold")
 KEYS += ("bootstrap_reps", "runs", "results", "figures", "test_sets", "diagnostics", "tuning")
 CONFIG_KEYS = ("algo", "hyperparams", "overrides", "label", "reference", "search_space")
-EVALUATION_KEYS = ("episodes", "final_episodes")
+EVALUATION_KEYS = ("episodes", "final_episodes", "every")
 DIAGNOSTICS_KEYS = ("every", "episodes")
 #: Bounds on a file's grid, so that a typo cannot ask for a million runs.
 MAX_CONFIGS, MAX_ENVS, MAX_SEEDS = 64, 16, 1000
@@ -98,6 +98,7 @@ class Experiment:
     :param n_timesteps: Budget of every run (``None``: each entry's)
     :param eval_episodes: Episodes of each periodic evaluation
     :param final_eval_episodes: Episodes of the final evaluation
+    :param eval_freq: Timesteps between periodic evaluations (``None``: 20 evaluations per run)
     :param reference: The configuration whose probability of improvement on the others is reported
     :param threshold: A return that runs should reach and keep (optional)
     :param bootstrap_reps: Bootstrap replications of the CIs
@@ -119,6 +120,7 @@ class Experiment:
     n_timesteps: int | None = None
     eval_episodes: int = 5
     final_eval_episodes: int = 20
+    eval_freq: int | None = None
     reference: str | None = None
     threshold: float | None = None
     bootstrap_reps: int = 5000
@@ -145,7 +147,7 @@ class Experiment:
                 n_timesteps=TINY_TIMESTEPS if tiny else self.n_timesteps,
                 overrides={**config.overrides, **self._diagnostics_callback(os.path.join(runs or self.runs, name), tiny)},
                 conf_folder=config.hyperparams,
-                eval_freq=TINY_TIMESTEPS // 2 if tiny else None,
+                eval_freq=TINY_TIMESTEPS // 2 if tiny else self.eval_freq,
                 eval_episodes=1 if tiny else self.eval_episodes,
                 final_eval_episodes=1 if tiny else self.final_eval_episodes,
             )
@@ -203,7 +205,8 @@ class Experiment:
             "envs": list(self.envs),
             "seeds": list(self.seeds),
             "n_timesteps": self.n_timesteps,
-            "eval": f"{self.eval_episodes} deterministic episodes per evaluation, 20 per run; "
+            "eval": f"{self.eval_episodes} deterministic episodes per evaluation, "
+            f"{'20 per run' if self.eval_freq is None else f'every {self.eval_freq} steps'}; "
             f"final: {self.final_eval_episodes} deterministic episodes",
             "resolved": self.resolved(),
             **({"test_sets": {name: test.record() for name, test in self.test_sets.items()}} if self.test_sets else {}),
@@ -280,6 +283,8 @@ def read_experiment(path: str) -> Experiment:
     episodes, final_episodes = evaluation.get("episodes", 5), evaluation.get("final_episodes", 20)
     for key, value in (("episodes", episodes), ("final_episodes", final_episodes)):
         _require(is_int(value, 1, 1000), path, f"evaluation.{key}", "must be an integer in 1-1000")
+    every = evaluation.get("every")
+    _require(every is None or is_int(every, 1, 10**9), path, "evaluation.every", "must be an integer in 1-1e9 (steps)")
     reference, threshold = data.get("reference"), data.get("threshold")
     _require(reference is None or reference in configs, path, "reference", f"must be one of the configs {list(configs)}")
     for key, value in configs.items():
@@ -307,6 +312,7 @@ def read_experiment(path: str) -> Experiment:
         n_timesteps=n_timesteps,
         eval_episodes=episodes,
         final_eval_episodes=final_episodes,
+        eval_freq=every,
         reference=reference,
         threshold=None if threshold is None else float(threshold),
         bootstrap_reps=reps,
@@ -316,7 +322,10 @@ def read_experiment(path: str) -> Experiment:
         test_sets=test_sets,
         diagnostics=diagnostics,
     )
-    return dataclasses.replace(experiment, tuning=read_tuning(data, experiment))
+    experiment = dataclasses.replace(experiment, tuning=read_tuning(data, experiment))
+    problem = "is tuning.n_evaluations in a tuning file"
+    _require(every is None or experiment.tuning is None, path, "evaluation.every", problem)
+    return experiment
 
 
 def run_experiment(

@@ -135,7 +135,7 @@ description: probe
 envs: [Pendulum-v1]
 seeds: [0, 1]
 n_timesteps: 200
-evaluation: {episodes: 1, final_episodes: 2}
+evaluation: {episodes: 1, final_episodes: 2, every: 100}
 configs:
   adc_small: {algo: adc, overrides: {learning_starts: 50, batch_size: 16, policy_kwargs: "dict(net_arch=[8])"}}
   ddpg_small: {algo: ddpg, overrides: {learning_starts: 50, batch_size: 16, policy_kwargs: "dict(net_arch=[8])"}, label: DDPG}
@@ -153,7 +153,9 @@ figures: ../figures
         (("reference: adc_small", "reference: td3"), "reference"),
         (("n_timesteps: 200", "n_timesteps: -5"), "n_timesteps"),
         (("bootstrap_reps: 100", "bootstrap_reps: 100\nbudget: 3"), "the file"),
-        (("{episodes: 1, final_episodes: 2}", "{episodes: 0}"), "evaluation.episodes"),
+        (("{episodes: 1, final_episodes: 2, every: 100}", "{episodes: 0}"), "evaluation.episodes"),
+        (("final_episodes: 2, every: 100}", "final_episodes: 2, every: 0}"), "evaluation.every"),
+        (("figures: ../figures", "tuning: {trials: 2}"), "evaluation.every"),
         (("figures: ../figures", "test_sets: [a, b]"), "test_sets"),
         (("figures: ../figures", "test_sets: {plain: {episodes: 0}}"), "test_sets.plain.episodes"),
         (("figures: ../figures", "test_sets: {plain: {model: last}}"), "test_sets.plain.model"),
@@ -181,7 +183,7 @@ figures: ../figures
         (("label: DDPG}", "search_space: {tau: 0.01}}\ntuning: {trials: 2}"), "configs.ddpg_small.search_space"),
         (("label: DDPG}", "search_space: {batch_size: [8]}}\ntuning: {trials: 2}"), "configs.ddpg_small.search_space"),
         (
-            ("{episodes: 1, final_episodes: 2}", "{episodes: 1}\ntuning: {trials: 2, n_startup_trials: -1}"),
+            ("{episodes: 1, final_episodes: 2, every: 100}", "{episodes: 1}\ntuning: {trials: 2, n_startup_trials: -1}"),
             "tuning.n_startup_trials",
         ),
     ],
@@ -222,6 +224,10 @@ def test_cli_trains_resumes_and_reports(tmp_path, capsys):
     assert set(pd.read_csv(results / "curves.csv")["algo"]) == {"adc_small", "ddpg_small"}
     assert (tmp_path / "figures" / "probe_learning_curves.png").is_file()
     assert not list(results.glob("*.png"))
+    # `evaluation.every`: each run evaluated at 100 and 200 steps, and the metadata says so.
+    evaluations = pd.read_csv(results / "evaluations.csv")
+    assert evaluations.groupby(["algo", "seed"])["timesteps"].apply(list).tolist() == [[100, 200]] * 4
+    assert "every 100 steps" in metadata["eval"]
     # A second invocation finds every run finished and trains nothing.
     capsys.readouterr()
     assert main(["experiment", str(path), "--workers", "2"]) == 0
