@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from sb3_adc_envs.lidar_course import geometry
@@ -165,10 +167,9 @@ def check_walls(
         )
 
 
-def check_obstacle_placement(
+def check_obstacle_placements(
     source: str,
-    field: str,
-    obstacle: Obstacle,
+    obstacles: Sequence[Obstacle],
     walls: np.ndarray,
     wall_thickness: float,
     corridor: Corridor | None,
@@ -176,70 +177,46 @@ def check_obstacle_placement(
     start: StartPose,
 ) -> None:
     """
-    Check that an obstacle's centre lies in the free space (in the corridor, or in the region of the start) and
-    that the obstacle leaves :data:`~sb3_adc_envs.lidar_course.course.OBSTACLE_START_CLEARANCE` free around the
-    start.
+    Check that each obstacle's centre lies in the free space (in the corridor, or in the region of the start) and
+    that it leaves :data:`~sb3_adc_envs.lidar_course.course.OBSTACLE_START_CLEARANCE` free around the start. Every
+    centre's distances to the walls and to the centre line are measured at once (the same numbers as one by one).
 
     :param source: The course file, for the error message
-    :param field: The obstacle's field, such as ``obstacles[2]``
-    :param obstacle: The obstacle
+    :param obstacles: The obstacles, ``obstacles[i]`` in the course file
     :param walls: ``(n, 4)`` segments of the course's walls
     :param wall_thickness: Thickness of the walls [m]
     :param corridor: The course's corridor, if it has one
     :param closed_polylines: The closed wall polylines (used without a corridor)
     :param start: The start pose
-    :raises CourseError: naming ``field`` or its ``position``
+    :raises CourseError: naming the first misplaced ``obstacles[i]`` or its ``position``
     """
-    centre = np.array([obstacle.x, obstacle.y])
+    if not obstacles:
+        return
+    centres = np.array([[obstacle.x, obstacle.y] for obstacle in obstacles])
+    wall_distances = geometry.point_segment_distances(centres, walls).min(axis=1).tolist()
     if corridor is not None:
-        inside = corridor.centre_distance(centre) <= corridor.width / 2.0
+        centre_line = geometry.polyline_segments(corridor.centerline, closed=True)
+        insides = (geometry.point_segment_distances(centres, centre_line).min(axis=1) <= corridor.width / 2.0).tolist()
     else:
         # Inside the same region as the start: enclosed by the same closed polylines (an island is a hole).
         start_point = np.array([start.x, start.y])
-        inside = all(
-            geometry.point_in_polygon(centre, polyline) == geometry.point_in_polygon(start_point, polyline)
-            for polyline in closed_polylines
-        )
-    _, wall_distance = geometry.closest_segment(centre, walls)
-    if not inside or wall_distance <= wall_thickness / 2.0:
-        where = "outside the corridor" if corridor is not None and not inside else "outside the free space"
-        raise CourseError(
-            source,
-            f"{field}.position",
-            f"the {obstacle.shape}'s centre ({obstacle.x:g}, {obstacle.y:g}) is {where}; an obstacle's centre must lie "
-            "in the free space the robot drives in (not in a wall).",
-        )
-    gap = obstacle.distance(start.x, start.y)
-    if gap < OBSTACLE_START_CLEARANCE:
-        raise CourseError(
-            source,
-            field,
-            f"the {obstacle.shape} at ({obstacle.x:g}, {obstacle.y:g}) is {gap:.3g} m from the start position "
-            f"({start.x:g}, {start.y:g}); obstacles must leave {OBSTACLE_START_CLEARANCE:g} m free around the start.",
-        )
-
-
-def misplaced_obstacles(
-    obstacles: list[Obstacle], walls: np.ndarray, wall_thickness: float, corridor: Corridor, start: StartPose
-) -> list[int]:
-    """
-    The indices of the obstacles of a corridor course that :func:`check_obstacle_placement` refuses, from the same
-    numbers (every obstacle's distances to the centre line and to the walls measured at once).
-
-    :param obstacles: The obstacles
-    :param walls: ``(n, 4)`` segments of the course's walls
-    :param wall_thickness: Thickness of the walls [m]
-    :param corridor: The course's corridor
-    :param start: The start pose
-    """
-    if not obstacles:
-        return []
-    centres = np.array([[obstacle.x, obstacle.y] for obstacle in obstacles])
-    centre_segments = geometry.polyline_segments(corridor.centerline, closed=True)
-    inside = (geometry.point_segment_distances(centres, centre_segments).min(axis=1) <= corridor.width / 2.0).tolist()
-    in_wall = (geometry.point_segment_distances(centres, walls).min(axis=1) <= wall_thickness / 2.0).tolist()
-    return [
-        i
-        for i, obstacle in enumerate(obstacles)
-        if not inside[i] or in_wall[i] or obstacle.distance(start.x, start.y) < OBSTACLE_START_CLEARANCE
-    ]
+        start_sides = [geometry.point_in_polygon(start_point, polyline) for polyline in closed_polylines]
+        sides = list(zip(closed_polylines, start_sides, strict=True))
+        insides = [all(geometry.point_in_polygon(centre, polyline) == side for polyline, side in sides) for centre in centres]
+    for i, (obstacle, inside, wall_distance) in enumerate(zip(obstacles, insides, wall_distances, strict=True)):
+        if not inside or wall_distance <= wall_thickness / 2.0:
+            where = "outside the corridor" if corridor is not None and not inside else "outside the free space"
+            raise CourseError(
+                source,
+                f"obstacles[{i}].position",
+                f"the {obstacle.shape}'s centre ({obstacle.x:g}, {obstacle.y:g}) is {where}; an obstacle's centre must "
+                "lie in the free space the robot drives in (not in a wall).",
+            )
+        gap = obstacle.distance(start.x, start.y)
+        if gap < OBSTACLE_START_CLEARANCE:
+            raise CourseError(
+                source,
+                f"obstacles[{i}]",
+                f"the {obstacle.shape} at ({obstacle.x:g}, {obstacle.y:g}) is {gap:.3g} m from the start position "
+                f"({start.x:g}, {start.y:g}); obstacles must leave {OBSTACLE_START_CLEARANCE:g} m free around the start.",
+            )

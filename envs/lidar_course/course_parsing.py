@@ -36,10 +36,9 @@ from sb3_adc_envs.lidar_course.course import (
 from sb3_adc_envs.lidar_course.course_checks import (
     check_corridor_does_not_overlap,
     check_extent,
-    check_obstacle_placement,
+    check_obstacle_placements,
     check_walls,
     corridor_walls,
-    misplaced_obstacles,
 )
 from sb3_adc_envs.lidar_course.course_yaml import CourseYamlError, load_course_yaml
 
@@ -122,8 +121,7 @@ def course_from_dict(data: Any, source: str = "<course>", default_name: str = "c
     walls = np.vstack(segments)
     check_walls(source, walls, wall_thickness, corridor, closed_polylines, start)
     obstacles = _parse_obstacles(source, data.get("obstacles", []), wall_thickness)
-    for i, obstacle in enumerate(obstacles):
-        check_obstacle_placement(source, f"obstacles[{i}]", obstacle, walls, wall_thickness, corridor, closed_polylines, start)
+    check_obstacle_placements(source, obstacles, walls, wall_thickness, corridor, closed_polylines, start)
     return Course(
         name=name,
         source=source,
@@ -149,11 +147,7 @@ def with_obstacles(course: Course, obstacles: Any) -> Course:
     if course.corridor is None or course.obstacles:
         raise ValueError(f"`course`: {course.name!r} must have a corridor and no obstacles yet.")
     parsed = _parse_obstacles(course.source, obstacles, course.wall_thickness)
-    # All obstacles measured at once; the first misplaced one raises check_obstacle_placement's error.
-    for i in misplaced_obstacles(parsed, course.walls, course.wall_thickness, course.corridor, course.start):
-        check_obstacle_placement(
-            course.source, f"obstacles[{i}]", parsed[i], course.walls, course.wall_thickness, course.corridor, [], course.start
-        )
+    check_obstacle_placements(course.source, parsed, course.walls, course.wall_thickness, course.corridor, [], course.start)
     return dataclasses.replace(course, obstacles=tuple(parsed))
 
 
