@@ -19,6 +19,9 @@ import numpy as np
 import torch as th
 from torch import nn
 
+#: Transitions the buffer holds (``COMMON["buffer_size"]`` of training_throughput.py).
+BUFFER_SIZE = 100_000
+
 
 class TwinMLP(nn.Module):
     """
@@ -72,7 +75,7 @@ class TightLoop:
         self.critic_optimizer = th.optim.Adam(self.critic.parameters(), lr=1e-3, fused=True)
         self.online: list[th.Tensor] = [*self.actor.parameters(), *self.critic.parameters()]
         self.target: list[th.Tensor] = [*self.actor_target.parameters(), *self.critic_target.parameters()]
-        size = 100_000
+        size = BUFFER_SIZE
         self.buffer = {key: th.zeros(size, dim) for key, dim in (("obs", obs_dim), ("action", act_dim), ("reward", 1))}
         self.buffer |= {"next_obs": th.zeros(size, obs_dim), "done": th.zeros(size, 1)}
         self.obs, _ = self.env.reset(seed=seed)
@@ -84,7 +87,7 @@ class TightLoop:
                 action = self.actor(th.as_tensor(self.obs, dtype=th.float32)[None])[0].numpy()
             action = np.clip(action + self.rng.normal(0, 0.1, action.shape), -1, 1)
             next_obs, reward, terminated, truncated, _ = self.env.step(action * self.scale)
-            row = self.step % 100_000
+            row = self.step % BUFFER_SIZE
             for key, value in (("obs", self.obs), ("action", action), ("reward", reward), ("next_obs", next_obs)):
                 self.buffer[key][row] = th.as_tensor(value, dtype=th.float32)
             self.buffer["done"][row] = float(terminated or truncated)
@@ -96,7 +99,7 @@ class TightLoop:
 
     def train(self, n_steps: int = 3, gamma: float = 0.98) -> None:
         """One gradient step (the actor's and the targets' every second step) on a batch of 3-step transitions."""
-        filled = min(self.step, 100_000)
+        filled = min(self.step, BUFFER_SIZE)
         index = th.randint(0, max(filled - n_steps, 1), (self.batch_size,))
         offsets = index[:, None] + th.arange(n_steps)
         dones = self.buffer["done"][offsets, 0]
