@@ -59,6 +59,11 @@ ENV_SPECS: dict[str, dict[str, Any]] = {
         "entry_point": "sb3_adc_envs.highway_obstacle:HighwayObstacleEnv",
         "max_episode_steps": 200,
     },
+    # The same task seen through 64 lidar rays instead of 16 (sb3_adc_envs.highway_obstacle.env.HighwayObstacleV1Env).
+    f"{NAMESPACE}/HighwayObstacle-v1": {
+        "entry_point": "sb3_adc_envs.highway_obstacle:HighwayObstacleV1Env",
+        "max_episode_steps": 200,
+    },
 }
 
 

@@ -12,7 +12,8 @@ from typing import Any
 import torch as th
 
 from sb3_adc.common.safe_load import UnsafeModelFileError
-from sb3_adc.config import parse_overrides
+from sb3_adc.config import parse_expression, parse_overrides
+from sb3_adc.config.allowlists import AllowList
 from sb3_adc.experiment.settings import check_device
 
 
@@ -102,15 +103,28 @@ def _numbers_as_numbers(value: Any) -> Any:
     return value
 
 
-def key_values(items: list[str] | None, option: str) -> dict[str, Any]:
+#: Names an environment's keyword arguments may use: none (literals and ``dict(...)`` only).
+_NO_NAMES = AllowList("name", {})
+
+
+def key_values(items: list[str] | None, option: str, dict_calls: bool = False) -> dict[str, Any]:
     """
     ``key:value`` items of an option, each value read as YAML, numbers as numbers (YAML 1.2's reading:
     ``learning_rate:1e-3`` gives a float).
 
     :param items: The items (``None``: none given)
     :param option: The option's name, for error messages
+    :param dict_calls: Also read a value written ``dict(key=value, ...)`` as the RL Zoo's ``--env-kwargs`` does
+        (with :func:`~sb3_adc.config.parse_expression`, literals only): ``config:"dict(lanes_count=4)"``. Off for
+        ``-params``, whose expression-valued keys the hyperparameter loader reads itself.
     """
-    return _numbers_as_numbers(parse_overrides(items or [], source=f"command line {option}"))
+    source = f"command line {option}"
+    values = _numbers_as_numbers(parse_overrides(items or [], source=source))
+    if dict_calls:
+        for key, value in values.items():
+            if isinstance(value, str) and value.lstrip().startswith("dict("):
+                values[key] = parse_expression(value, source, key, names=_NO_NAMES)
+    return values
 
 
 def train_options(args: argparse.Namespace) -> dict[str, Any]:
@@ -125,7 +139,7 @@ def train_options(args: argparse.Namespace) -> dict[str, Any]:
         "algo": args.algo,
         "env_id": args.env,
         "overrides": key_values(args.hyperparams, "-params"),
-        "env_kwargs": key_values(args.env_kwargs, "--env-kwargs"),
-        "eval_env_kwargs": key_values(args.eval_env_kwargs, "--eval-env-kwargs"),
+        "env_kwargs": key_values(args.env_kwargs, "--env-kwargs", dict_calls=True),
+        "eval_env_kwargs": key_values(args.eval_env_kwargs, "--eval-env-kwargs", dict_calls=True),
         **{name: getattr(args, name) for name in same},
     }

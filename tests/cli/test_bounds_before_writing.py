@@ -71,6 +71,16 @@ def test_command_line_values_read_numbers_as_numbers():
     assert isinstance(values["speed"], float)
 
 
+def test_environment_values_may_be_written_as_dict_calls():
+    # The RL Zoo's --env-kwargs form; YAML alone would pass the text on as a string.
+    items = ["config:dict(observation=dict(cells=64), lanes_count=4)", "name:dict"]
+    values = key_values(items, "--env-kwargs", dict_calls=True)
+    assert values == {"config": {"observation": {"cells": 64}, "lanes_count": 4}, "name": "dict"}
+    assert key_values(["config:dict(a=1)"], "-params") == {"config": "dict(a=1)"}  # -params: the loader reads it
+    with pytest.raises(HyperparamsError, match=r"name 'nn.ReLU' is not allowed"):
+        key_values(["config:dict(activation_fn=nn.ReLU)"], "--env-kwargs", dict_calls=True)
+
+
 @pytest.mark.parametrize("net_arch", [[64, 64], {"pi": [64], "qf": [400, 300]}])
 def test_ordinary_networks_pass(net_arch):
     config = load_hyperparams("td3", "Pendulum-v1", overrides={"policy_kwargs": {"net_arch": net_arch}})

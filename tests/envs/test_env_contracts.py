@@ -24,6 +24,7 @@ ENV_IDS = [
     "sb3_adc/LidarObstacleCourseNoisy-v1",
     "sb3_adc/LidarObstacleCourseSpeed-v1",
     "sb3_adc/HighwayObstacle-v0",
+    "sb3_adc/HighwayObstacle-v1",
 ]
 TINY = {
     ADC: {"net_arch": {"pi": [8], "qf": [8]}, "n_intervals": 10, "value_net_arch": [4]},
@@ -42,6 +43,7 @@ def test_the_environments_are_registered():
     assert gym.spec("sb3_adc/LidarObstacleCourseNoisy-v1").max_episode_steps == 500
     assert gym.spec("sb3_adc/LidarObstacleCourseSpeed-v1").max_episode_steps == 500
     assert gym.spec("sb3_adc/HighwayObstacle-v0").max_episode_steps == 200
+    assert gym.spec("sb3_adc/HighwayObstacle-v1").max_episode_steps == 200
 
 
 def test_importing_sb3_adc_imports_neither_pybullet_nor_highway_env():

@@ -14,6 +14,7 @@ ENV_IDS = [
     "sb3_adc/LidarObstacleCourse-v1",
     "sb3_adc/LidarObstacleCourseNoisy-v1",
     "sb3_adc/HighwayObstacle-v0",
+    "sb3_adc/HighwayObstacle-v1",
 ]
 #: The entries that hold a configuration measured on the procedural course instead of the -v0 entry's.
 MEASURED_V1 = {
@@ -96,3 +97,12 @@ def test_the_measured_noisy_v1_entries_are_their_clean_v1_entries(algo):
     noisy = load_hyperparams(algo, "sb3_adc/LidarObstacleCourseNoisy-v1")
     assert noisy.source.endswith("[sb3_adc/LidarObstacleCourseNoisy-v1]")
     assert noisy.saved == clean.saved
+
+
+@pytest.mark.parametrize("algo", ["adc", "ddpg", "dqn", "sac", "td3", "vanilla_ac"])
+def test_the_highway_v1_entries_are_the_v0_entries(algo):
+    """-v1 is -v0 seen through more rays: the same starting entry, untuned on either."""
+    v0 = load_hyperparams(algo, "sb3_adc/HighwayObstacle-v0")
+    v1 = load_hyperparams(algo, "sb3_adc/HighwayObstacle-v1")
+    assert v1.source.endswith("[sb3_adc/HighwayObstacle-v1]")
+    assert v1.saved == v0.saved

@@ -1,4 +1,4 @@
-"""sb3_adc/HighwayObstacle-v0: steering-only obstacle avoidance on highway-env."""
+"""sb3_adc/HighwayObstacle-v0 and -v1: steering-only obstacle avoidance on highway-env."""
 
 from __future__ import annotations
 
@@ -132,6 +132,100 @@ def test_the_lidar_sees_obstacles_ahead():
     assert obs[0] == pytest.approx((30.0 - 1.0) / 50.0, abs=1e-3)  # the obstacle's near face, 1 m before its centre
     assert obs[8] == 1.0
     env.close()
+
+
+def closest_own_lane_readings(env_id: str, distance: float) -> float:
+    """
+    How far the readings of an obstacle in the next lane, ``distance`` ahead, are from those of the most alike
+    obstacle in the car's own lane (at any distance within 3 m of it, 2 cm apart, or out of the lidar's range):
+    the largest difference of a ray.
+    """
+    from highway_env.vehicle.objects import Obstacle
+
+    env = gym.make(env_id, config=NO_OBSTACLES)
+    env.reset(seed=0)
+    unwrapped = env.unwrapped
+    unwrapped.vehicle.position[1] = 4.0  # the middle lane, heading along the road
+    x = unwrapped.vehicle.position[0]
+
+    def readings(ahead, lane):
+        unwrapped.road.objects = [Obstacle(unwrapped.road, [x + ahead, 4.0 * lane])]
+        return unwrapped.observation_type.observe()
+
+    next_lane = readings(distance, 0)
+    candidates = [*np.arange(distance - 3.0, distance + 3.0, 0.02), 60.0]
+    own_lane = np.array([readings(ahead, 1) for ahead in candidates])
+    env.close()
+    return float(np.abs(own_lane - next_lane).max(axis=1).min())
+
+
+def test_v1_tells_the_next_lane_from_the_own_lane_where_v0_cannot():
+    # -v0's 16 rays (22.5 deg): an obstacle in the next lane reads as one in the car's own lane while it is more
+    # than about 20 m ahead, and as no obstacle at all from there to about 15 m (hidden behind the road edge's readings):
+    # a lane change (about 28 m at 20 m/s) has to start before the lidar says which lane to leave.
+    for distance in (17.0, 30.0, 45.0):
+        assert closest_own_lane_readings("sb3_adc/HighwayObstacle-v0", distance) < 1e-3
+    assert closest_own_lane_readings("sb3_adc/HighwayObstacle-v0", 12.0) > 0.05
+    # -v1's 64 rays (5.6 deg) tell them apart up to the lidar's range.
+    for distance in (12.0, 17.0, 30.0, 45.0):
+        assert closest_own_lane_readings("sb3_adc/HighwayObstacle-v1", distance) > 0.05
+
+
+def drive_knowing_rows(look_ahead: float, seeds: range) -> float:
+    """
+    Success rate of a controller that is told, ``look_ahead`` metres before each row of obstacles, which lanes it
+    blocks (not what the lidar says), and then steers to the nearest free lane: how early a policy must know.
+    """
+    env = make()
+    unwrapped = env.unwrapped
+    lane_width = 4.0
+    successes = []
+    for seed in seeds:
+        env.reset(seed=seed)
+        goal = None
+        while True:
+            x, y = unwrapped.vehicle.position
+            ahead = [o.position for o in unwrapped.road.objects if -3.0 < o.position[0] - x < look_ahead]
+            if ahead:
+                row = min(position[0] for position in ahead)
+                blocked = {round(position[1] / lane_width) for position in ahead if abs(position[0] - row) < 1.0}
+                free = [lane for lane in range(unwrapped.config["lanes_count"]) if lane not in blocked]
+                goal = min(free, key=lambda lane: abs(lane * lane_width - y))
+            target = round(y / lane_width) if goal is None else goal
+            heading = np.clip(0.08 * (target * lane_width - y), -0.35, 0.35)
+            steering = np.clip((heading - unwrapped.vehicle.heading) / math.radians(6.0), -1.0, 1.0)
+            _, _, terminated, truncated, info = env.step(np.array([steering], dtype=np.float32))
+            if terminated or truncated:
+                successes.append(info["is_success"])
+                break
+    env.close()
+    return float(np.mean(successes))
+
+
+def test_the_task_is_solvable_when_the_blocked_lanes_are_known_30_m_ahead():
+    # Solvable: told which lanes a row blocks 30 m before it, a simple controller drives every road to the end.
+    # Told only 15 m before (where -v0's lidar first tells the next lane from the own lane), it crashes.
+    assert drive_knowing_rows(30.0, range(5)) == 1.0
+    assert drive_knowing_rows(15.0, range(5)) == 0.0
+
+
+def test_v1_is_v0_with_64_rays():
+    v0, v1 = gym.make("sb3_adc/HighwayObstacle-v0"), gym.make("sb3_adc/HighwayObstacle-v1")
+    assert v0.observation_space.shape == (16,)
+    assert v1.observation_space.shape == (64,)
+    assert gym.spec("sb3_adc/HighwayObstacle-v1").max_episode_steps == 200
+    config0, config1 = v0.unwrapped.config, v1.unwrapped.config
+    assert config1["observation"] == {**config0["observation"], "cells": 64}
+    assert {k: v for k, v in config1.items() if k != "observation"} == {k: v for k, v in config0.items() if k != "observation"}
+    obs0, _ = v0.reset(seed=5)
+    obs1, _ = v1.reset(seed=5)
+    assert [tuple(o.position) for o in v0.unwrapped.road.objects] == [tuple(o.position) for o in v1.unwrapped.road.objects]
+    np.testing.assert_array_equal(obs1[::4], obs0)  # every fourth ray of -v1 is a ray of -v0
+    # An observation config without `cells` keeps the id's number of rays.
+    other = gym.make("sb3_adc/HighwayObstacle-v1", config={"observation": {"type": "RoadEdgeLidarObservation"}})
+    assert other.reset(seed=0)[0].shape == (64,)
+    for env in (v0, v1, other):
+        env.close()
 
 
 def test_every_obstacle_row_leaves_a_lane_free():
