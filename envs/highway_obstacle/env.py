@@ -29,7 +29,8 @@ MAX_LANES = 16
 #: The most rays of the observation (``config["observation"]["cells"]``): the observation's size, which sizes a
 #: replay buffer's memory.
 MAX_CELLS = 4096
-#: Rays of ``-v0``'s lidar: an obstacle in the next lane looks like one in the car's own lane until 16 m ahead.
+#: Rays of ``-v0``'s lidar: it tells an obstacle in the next lane from one in the car's own lane (or from none) only
+#: within about 15 m.
 V0_CELLS = 16
 #: Rays of ``-v1``'s lidar: the next lane's obstacles are told apart from the car's own lane's over the whole range.
 V1_CELLS = 64
@@ -261,10 +262,11 @@ class HighwayObstacleV1Env(HighwayObstacleEnv):
     ``sb3_adc/HighwayObstacle-v1``: :class:`HighwayObstacleEnv` seen through :data:`V1_CELLS` (64) rays instead of
     :data:`V0_CELLS` (16), everything else the same.
 
-    With 16 rays (22.5° each) an obstacle in the next lane gives the same readings as one in the car's own lane,
-    a little nearer, until it is 16 m ahead: 0.8 s at 20 m/s, less than the 1.4 s a lane change takes, so ``-v0``
-    tells a policy which lane to leave too late. With 64 rays (5.6° each) the two differ over the lidar's whole
-    range (50 m). ``docs/envs/highway_obstacle.rst`` has the measurements.
+    With 16 rays (22.5° each) an obstacle in the next lane gives the same readings as one in the car's own lane
+    while it is more than about 20 m ahead, and then none until about 15 m (the road edge's readings hide it);
+    a lane change takes about 28 m at 20 m/s, so ``-v0`` tells a policy which lane to leave too late. With 64 rays
+    (5.6° each) the two differ over the lidar's whole range (50 m). ``docs/envs/highway_obstacle.rst`` has the
+    measurements, ``tests/envs/test_highway_obstacle.py`` checks them.
 
     :param config: Overrides of :meth:`default_config`
     :param render_mode: ``None`` or ``"rgb_array"``
