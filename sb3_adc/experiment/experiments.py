@@ -36,7 +36,6 @@ import contextlib
 import dataclasses
 import os
 import tempfile
-import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -357,9 +356,7 @@ def run_experiment(
     with results_lock, scratch_folder as scratch:
         runs = os.path.join(scratch, "runs") if scratch else None
         grids = experiment.grids(tiny=tiny, runs=runs)
-        start = time.perf_counter()
         results = run_benchmarks(list(grids.values()), backend, workers, address, report)
-        elapsed = time.perf_counter() - start
         outcomes = [outcome for result in results for outcome in result.outcomes]
         from sb3_adc.experiment.summary import merge_tables, write_diagnostics, write_report
 
@@ -377,7 +374,8 @@ def run_experiment(
                 scoring.score(finished, test_sets, output, workers or 1)
             if experiment.diagnostics:
                 write_diagnostics(experiment, runs or experiment.runs, output, None if tiny else experiment.figures)
-            write_report(experiment, output, figures=None if tiny else experiment.figures, wall_time_s=elapsed)
+            folders = [grid.log_folder for grid in grids.values()]
+            write_report(experiment, output, figures=None if tiny else experiment.figures, grids=folders)
     return outcomes
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -15,6 +15,7 @@ import numpy as np
 from sb3_adc.common.atomic import write_atomically
 from sb3_adc.diagnostics import ARRAY_KEYS, HISTORY_CSV, load_history, plot_diagnostics
 from sb3_adc.experiment.benchmark import EPISODES_CSV, EVALUATIONS_CSV, FINAL_CSV
+from sb3_adc.experiment.invocations import read_invocations
 from sb3_adc.experiment.plots import plot_results
 from sb3_adc.experiment.provenance import machine_metadata
 from sb3_adc.experiment.results import read_table
@@ -160,7 +161,7 @@ def merge_tables(tables: Mapping[str, Mapping[str, str]], output: str) -> None:
         pd.concat(frames, ignore_index=True).to_csv(os.path.join(output, table), index=False)
 
 
-def write_report(experiment: Experiment, output: str, figures: str | None = None, wall_time_s: float | None = None) -> None:
+def write_report(experiment: Experiment, output: str, figures: str | None = None, grids: Sequence[str] | None = None) -> None:
     """
     Write an experiment's statistics and figures from its merged tables in ``output``: ``summary.csv``, ``.md``
     and ``summary_table.csv``, ``time_to_threshold.{csv,md}`` with a threshold, the figures and tables of
@@ -170,7 +171,8 @@ def write_report(experiment: Experiment, output: str, figures: str | None = None
     :param experiment: The experiment
     :param output: Its results folder
     :param figures: Where to move the figures, as ``{name}_{figure}.png`` (``None``: none is kept)
-    :param wall_time_s: Seconds this invocation trained (``None``: no training, ``metadata.json`` is left as it is)
+    :param grids: The log folders of the grids just trained, whose ``invocations.json`` give the wall time of every
+        invocation, interrupted ones included (``None``: no training, ``metadata.json`` is left as it is)
     """
     write_test_summary(output, experiment.references(), experiment.bootstrap_reps)
     out = partial(os.path.join, output)
@@ -202,8 +204,8 @@ def write_report(experiment: Experiment, output: str, figures: str | None = None
         else:
             os.makedirs(figures, exist_ok=True)
             os.replace(figure, os.path.join(figures, f"{experiment.name}_{os.path.basename(figure)}"))
-    if wall_time_s is not None:
-        _write_metadata(experiment, output, wall_time_s)
+    if grids is not None:
+        _write_metadata(experiment, output, grids)
 
 
 #: The critic diagnostics summarised with CIs over runs: the critic's bias, and ADC's advantage roughness.
@@ -278,13 +280,13 @@ def write_metadata(path: str, metadata: Mapping[str, Any]) -> None:
     write_atomically(path, lambda stream: stream.write(json.dumps(metadata, indent=2) + "\n"))
 
 
-def _write_metadata(experiment: Experiment, output: str, wall_time_s: float) -> None:
+def _write_metadata(experiment: Experiment, output: str, grids: Sequence[str]) -> None:
     from sb3_adc.experiment.experiments import repository_root
 
     path = os.path.join(output, "metadata.json")
     previous = read_metadata(path)
-    wall_times = dict(previous.get("wall_time_s_per_invocation", {}))
-    wall_times[str(len(wall_times))] = round(wall_time_s, 1)
+    # From the grids' journals, not counted here: an invocation stopped before its report keeps its time.
+    wall_times = {str(index): entry["wall_time_s"] for index, entry in enumerate(read_invocations(grids))}
     metadata = {
         **experiment.record(repository_root(experiment)),
         "wall_time_s_per_invocation": wall_times,

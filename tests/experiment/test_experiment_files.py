@@ -228,12 +228,17 @@ def test_cli_trains_resumes_and_reports(tmp_path, capsys):
     evaluations = pd.read_csv(results / "evaluations.csv")
     assert evaluations.groupby(["algo", "seed"])["timesteps"].apply(list).tolist() == [[100, 200]] * 4
     assert "every 100 steps" in metadata["eval"]
+    # An invocation killed before its report (its journal entry unfinished) keeps its wall time in the metadata.
+    journal = tmp_path / "runs" / "probe" / "adc_small" / "invocations.json"
+    killed = {**json.loads(journal.read_text())[0], "id": "killed", "wall_time_s": 1234.5, "finished": False}
+    journal.write_text(json.dumps([*json.loads(journal.read_text()), killed]))
     # A second invocation finds every run finished and trains nothing.
     capsys.readouterr()
     assert main(["experiment", str(path), "--workers", "2"]) == 0
     assert capsys.readouterr().out.count("skipped") == 4
     metadata = json.loads((results / "metadata.json").read_text())
-    assert len(metadata["wall_time_s_per_invocation"]) == 2
+    wall_times = list(metadata["wall_time_s_per_invocation"].values())
+    assert len(wall_times) == 3 and 1234.5 in wall_times
     # --report rewrites the summary from the tables alone, and leaves the training's metadata as it is.
     (results / "summary.csv").unlink()
     assert main(["experiment", str(path), "--report"]) == 0
