@@ -238,7 +238,8 @@ def test_cli_trains_resumes_and_reports(tmp_path, capsys):
     assert capsys.readouterr().out.count("skipped") == 4
     metadata = json.loads((results / "metadata.json").read_text())
     wall_times = list(metadata["wall_time_s_per_invocation"].values())
-    assert len(wall_times) == 3 and 1234.5 in wall_times
+    assert len(wall_times) == 3
+    assert 1234.5 in wall_times
     # --report rewrites the summary from the tables alone, and leaves the training's metadata as it is.
     (results / "summary.csv").unlink()
     assert main(["experiment", str(path), "--report"]) == 0
