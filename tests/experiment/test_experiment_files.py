@@ -230,8 +230,9 @@ def test_cli_trains_resumes_and_reports(tmp_path, capsys):
     assert "every 100 steps" in metadata["eval"]
     # An invocation killed before its report (its journal entry unfinished) keeps its wall time in the metadata.
     journal = tmp_path / "runs" / "probe" / "adc_small" / "invocations.json"
-    killed = {**json.loads(journal.read_text())[0], "id": "killed", "wall_time_s": 1234.5, "finished": False}
-    journal.write_text(json.dumps([*json.loads(journal.read_text()), killed]))
+    entries = json.loads(journal.read_text())
+    killed = {**entries[0], "id": "killed", "wall_time_s": 1234.5, "finished": False}
+    journal.write_text(json.dumps([*entries, killed]))
     # A second invocation finds every run finished and trains nothing.
     capsys.readouterr()
     assert main(["experiment", str(path), "--workers", "2"]) == 0
