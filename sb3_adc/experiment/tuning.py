@@ -15,7 +15,9 @@ time tunes a study kept in a journal file; a ``--storage`` database is shared on
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import dataclasses
 import math
 import multiprocessing
 import os
@@ -39,6 +41,7 @@ from sb3_adc.config.loader import (
     read_yaml_file,
     select_entry,
 )
+from sb3_adc.experiment.invocations import InvocationJournal, read_invocations
 from sb3_adc.experiment.settings import check_env_kwargs
 from sb3_adc.experiment.tuning_settings import TuneSettings, check_search_space, check_success_reported
 from sb3_adc.experiment.tuning_storage import check_storage, open_study, repair_journal, study_lock
@@ -62,6 +65,7 @@ class TuneResult:
     best_params: dict[str, Any]
     best_hyperparams_file: str
     n_finished: int
+    wall_time_s: float = 0.0
 
 
 def tune(settings: TuneSettings) -> TuneResult:
@@ -90,35 +94,48 @@ def tune(settings: TuneSettings) -> TuneResult:
         continue_interrupted(study)
         if not any(trial.user_attrs.get(SHIPPED) and trial.state != TrialState.FAIL for trial in study.trials):
             study.enqueue_trial({}, user_attrs={SHIPPED: True})
-        remaining = settings.n_trials - len(_finished(study)) - len(study.get_trials(False, (TrialState.RUNNING,)))
+        finished_before = len(_finished(study))
+        remaining = settings.n_trials - finished_before - len(study.get_trials(False, (TrialState.RUNNING,)))
         start = time.perf_counter()
         print(
             f"Tuning {settings.algo} on {settings.env_id}: study {settings.name} in {settings.study_dir}, "
-            f"{len(_finished(study))} of {settings.n_trials} trials finished, seeds {list(settings.seeds)}, "
+            f"{finished_before} of {settings.n_trials} trials finished, seeds {list(settings.seeds)}, "
             f"{settings.n_jobs} worker(s)"
         )
-        # The trials still to run, taken one at a time by whichever worker is free. Optuna's MaxTrialsCallback (the
-        # Zoo's budget) counts the study's trials after each one ends, and two workers ending at once can both start
-        # one more: it overshoots by up to n_jobs - 1 trials. A shared count, taken under a lock, is exact.
-        context = multiprocessing.get_context("spawn")
-        tickets = context.Value("i", remaining)
-        workers = [
-            context.Process(target=_work, args=(settings, base, k, tickets), name=f"tuning-worker-{k}")
-            for k in range(min(settings.n_jobs, remaining))
-        ]
-        if len(workers) == 1:
-            _work(settings, base, 0, tickets)
-        else:
-            for worker in workers:
-                worker.start()
-            for worker in workers:
-                worker.join()
-            failed = [worker.name for worker in workers if worker.exitcode != 0]
-            if failed:
-                raise RuntimeError(f"{', '.join(failed)} stopped with an error; run the same command again to continue")
-        result = _report(settings, open_study(settings, worker=0))
+        # The invocations that train the study keep their time in its folder's invocations.json (a heartbeat, kept
+        # after Ctrl-C or a kill): the study's wall time is their sum. One that only reports adds none.
+        journal = InvocationJournal([(settings.study_dir, [settings.algo], settings.n_trials)], settings.n_jobs, "local")
+        with journal if remaining > 0 else contextlib.nullcontext():
+            _run_trials(settings, base, remaining)
+            result = _report(settings, open_study(settings, worker=0))
+            for _ in range(result.n_finished - finished_before if remaining > 0 else 0):
+                journal.record(settings.study_dir, "trained")
         print(f"Tuning took {time.perf_counter() - start:.0f} s")
-        return result
+        wall_time = sum(entry["wall_time_s"] for entry in read_invocations([settings.study_dir]))
+        return dataclasses.replace(result, wall_time_s=round(wall_time, 1))
+
+
+def _run_trials(settings: TuneSettings, base: dict[str, Any], remaining: int) -> None:
+    """Run ``remaining`` trials, taken one at a time by whichever of the study's workers is free."""
+    # Optuna's MaxTrialsCallback (the Zoo's budget) counts the study's trials after each one ends, and two workers
+    # ending at once can both start one more: it overshoots by up to n_jobs - 1 trials. A shared count, taken under
+    # a lock, is exact.
+    context = multiprocessing.get_context("spawn")
+    tickets = context.Value("i", remaining)
+    workers = [
+        context.Process(target=_work, args=(settings, base, k, tickets), name=f"tuning-worker-{k}")
+        for k in range(min(settings.n_jobs, remaining))
+    ]
+    if len(workers) == 1:
+        _work(settings, base, 0, tickets)
+        return
+    for worker in workers:
+        worker.start()
+    for worker in workers:
+        worker.join()
+    failed = [worker.name for worker in workers if worker.exitcode != 0]
+    if failed:
+        raise RuntimeError(f"{', '.join(failed)} stopped with an error; run the same command again to continue")
 
 
 def _work(settings: TuneSettings, base: dict[str, Any], worker: int, tickets: Synchronized[int]) -> None:

@@ -32,7 +32,6 @@ import dataclasses
 import os
 import shutil
 import tempfile
-import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -268,16 +267,15 @@ def run_tuning(experiment: Experiment, workers: int | None = None, tiny: bool = 
         summary: list[str] = []
         for name in experiment.configs:
             study = study_settings(experiment, name, workers or 1, tiny, os.path.join(folder, "runs") if folder else None)
-            start = time.perf_counter()
             result = tune(study)
-            elapsed = time.perf_counter() - start
             if result.n_finished > study.n_trials:
                 raise RuntimeError(f"the {name} study holds {result.n_finished} trials, more than the budget {study.n_trials}")
-            # An invocation that only reports (its study finished before) adds no wall time and keeps the workers
-            # and machine of the invocations that trained.
+            # The study's wall time is that of every invocation that trained it, one stopped by Ctrl-C or a kill
+            # included (its journal: tune). An invocation that only reports (its study finished before) keeps the
+            # workers and machine of the invocations that trained.
             trained = result.n_finished > len(finished(read_trials(os.path.join(output, name, "trials.csv"))))
             if trained:
-                metadata["wall_time_s"][name] = round(metadata["wall_time_s"].get(name, 0.0) + elapsed, 1)
+                metadata["wall_time_s"][name] = result.wall_time_s
             invocation = {"workers": workers or 1, **machine_metadata()} if trained or "workers" not in metadata else {}
             os.makedirs(os.path.join(output, name), exist_ok=True)
             shutil.copyfile(os.path.join(result.study_dir, "trials.csv"), os.path.join(output, name, "trials.csv"))

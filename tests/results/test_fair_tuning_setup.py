@@ -94,3 +94,25 @@ def test_report_only_invocation_keeps_the_training_invocations_metadata(tmp_path
     assert (results / "summary.md").read_text() == summary
     assert "| ddpg | 2 |" in capsys.readouterr().out
     assert json.loads(metadata_path.read_text()) == reported
+
+
+def test_a_killed_invocation_keeps_its_time_in_the_studys_wall_time(tmp_path):
+    """An invocation stopped by a kill writes no metadata, but its journal entry in the study's folder stays: the
+    invocation that finishes the study reports the time of both."""
+    path = tmp_path / "experiments" / "probe.yml"
+    path.parent.mkdir()
+    path.write_text(TINY_TUNING)
+    study = tmp_path / "runs" / "probe" / "tuning" / "ddpg-Pendulum-v1"
+    study.mkdir(parents=True)
+    killed = {"id": "killed", "started": "2026-01-01T00:00:00+00:00", "wall_time_s": 1234.5, "workers": 1}
+    killed |= {"backend": "local", "algos": ["ddpg"], "runs_in_grid": 2, "runs": {"trained": 1}, "finished": False}
+    (study / "invocations.json").write_text(json.dumps([killed]))
+    assert main(["experiment", str(path), "--workers", "1"]) == 0
+    entries = json.loads((study / "invocations.json").read_text())
+    assert entries[0]["id"] == "killed"
+    assert len(entries) == 2
+    finishing = entries[1]
+    assert finishing["finished"]
+    assert finishing["runs"]["trained"] == 2
+    metadata = json.loads((tmp_path / "results" / "probe" / "metadata.json").read_text())
+    assert metadata["wall_time_s"]["ddpg"] == round(1234.5 + finishing["wall_time_s"], 1)
