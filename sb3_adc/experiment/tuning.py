@@ -15,7 +15,6 @@ time tunes a study kept in a journal file; a ``--storage`` database is shared on
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import dataclasses
 import math
@@ -104,12 +103,15 @@ def tune(settings: TuneSettings) -> TuneResult:
         )
         # The invocations that train the study keep their time in its folder's invocations.json (a heartbeat, kept
         # after Ctrl-C or a kill): the study's wall time is their sum. One that only reports adds none.
-        journal = InvocationJournal([(settings.study_dir, [settings.algo], settings.n_trials)], settings.n_jobs, "local")
-        with journal if remaining > 0 else contextlib.nullcontext():
-            _run_trials(settings, base, remaining)
+        if remaining > 0:
+            journal = InvocationJournal([(settings.study_dir, [settings.algo], settings.n_trials)], settings.n_jobs, "local")
+            with journal:
+                _run_trials(settings, base, remaining)
+                result = _report(settings, open_study(settings, worker=0))
+                for _ in range(result.n_finished - finished_before):
+                    journal.record(settings.study_dir, "trained")
+        else:
             result = _report(settings, open_study(settings, worker=0))
-            for _ in range(result.n_finished - finished_before if remaining > 0 else 0):
-                journal.record(settings.study_dir, "trained")
         print(f"Tuning took {time.perf_counter() - start:.0f} s")
         wall_time = sum(entry["wall_time_s"] for entry in read_invocations([settings.study_dir]))
         return dataclasses.replace(result, wall_time_s=round(wall_time, 1))
