@@ -1,6 +1,7 @@
-"""The committed equal-budget studies of ``benchmarks/experiments/fair_tuning*.yml`` agree with themselves: every
-algorithm had the same number of finished trials, a trial's value is the mean of its seeds, the winner files hold
-the best trial, and the lidar study's summary and trial times rebuild from its trials."""
+"""The committed equal-budget studies of the tuning files (``fair_tuning*.yml``,
+``highway_obstacle_v1_tuning.yml``) agree with themselves: every algorithm had the same number of finished trials, a
+trial's value is the mean of its seeds, the winner files hold the best trial, and the lidar study's summary and trial
+times rebuild from its trials."""
 
 from __future__ import annotations
 
@@ -16,7 +17,8 @@ from sb3_adc.experiment.experiments import read_experiment
 from sb3_adc.experiment.tuning_grid import summarise
 
 ROOT = Path(__file__).resolve().parents[2]
-FOLDERS = sorted(path.parent for path in (ROOT / "benchmarks" / "results").glob("fair_tuning*/metadata.json"))
+#: The results of every tuning file (``tuning:``): the folders with winner files.
+FOLDERS = sorted(path.parent for path in (ROOT / "benchmarks" / "results").glob("*/hyperparams"))
 
 
 def trials_of(folder: Path) -> dict[str, list[dict[str, str]]]:
@@ -48,17 +50,22 @@ def test_equal_budgets_values_and_winners(folder):
         assert f"of {metadata['n_trials']} trials" in header
 
 
-def test_lidar_summary_and_trial_times_rebuild_from_the_trials(tmp_path):
-    folder = ROOT / "benchmarks" / "results" / "fair_tuning_lidar"
+#: The studies whose metadata records the trials' time (those run since it does): their summaries must rebuild.
+REBUILT = [folder for folder in FOLDERS if "trial_time_s" in json.loads((folder / "metadata.json").read_text())]
+
+
+@pytest.mark.parametrize("folder", REBUILT, ids=[folder.name for folder in REBUILT])
+def test_summary_and_trial_times_rebuild_from_the_trials(tmp_path, folder):
     metadata = json.loads((folder / "metadata.json").read_text())
     for algo in trials_of(folder):
         (tmp_path / algo).mkdir()
         shutil.copy(folder / algo / "trials.csv", tmp_path / algo / "trials.csv")
-    experiment = read_experiment(str(ROOT / "benchmarks" / "experiments" / "fair_tuning_lidar.yml"))
+    experiment = read_experiment(str(ROOT / "benchmarks" / "experiments" / f"{folder.name}.yml"))
     _, trial_time = summarise(experiment, str(tmp_path), experiment.seeds)
     assert (tmp_path / "summary.md").read_text() == (folder / "summary.md").read_text()
     assert trial_time == metadata["trial_time_s"]
-    assert set(metadata["starting_points"]) == set(trials_of(folder))
+    if "starting_points" in metadata:
+        assert set(metadata["starting_points"]) == set(trials_of(folder))
 
 
 def test_fresh_seed_configs_are_the_winners():
