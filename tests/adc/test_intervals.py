@@ -98,31 +98,29 @@ def test_aggregation_matches_the_equations(aggregation, action_dim):
     th.testing.assert_close(aggregate(value, advantages, weights), reference_q(value, advantages, actions, aggregation))
 
 
-def test_mean_aggregation_identity():
-    # Eq. 12-14: over the n intervals the centred advantage averages to zero, so mean_z Q(s, z) == V(s).
+def q_at_every_centre(aggregation: str) -> tuple[th.Tensor, th.Tensor]:
+    """``V`` ``(4, 1)`` and ``Q(s, z)`` at each of 9 interval centres ``(9, 4, 1)``, for random streams."""
     partition = UniformIntervalPartition(9)
     value = th.randn(4, 1)
     advantages = th.randn(4, 1, 9)
     q_all = th.stack(
         [
-            aggregate(value, advantages, partition.centred_weights(th.full((4, 1), c), advantages, "mean", "none"))
+            aggregate(value, advantages, partition.centred_weights(th.full((4, 1), c), advantages, aggregation, "none"))
             for c in partition.centres
         ]
     )
+    return value, q_all
+
+
+def test_mean_aggregation_identity():
+    # Eq. 12-14: over the n intervals the centred advantage averages to zero, so mean_z Q(s, z) == V(s).
+    value, q_all = q_at_every_centre("mean")
     th.testing.assert_close(q_all.mean(0), value)
 
 
 def test_max_aggregation_identity():
     # Eq. 11: Q <= V everywhere, with equality at the best interval.
-    partition = UniformIntervalPartition(9)
-    value = th.randn(4, 1)
-    advantages = th.randn(4, 1, 9)
-    q_all = th.stack(
-        [
-            aggregate(value, advantages, partition.centred_weights(th.full((4, 1), c), advantages, "max", "none"))
-            for c in partition.centres
-        ]
-    )
+    value, q_all = q_at_every_centre("max")
     assert th.all(q_all <= value + 1e-6)
     th.testing.assert_close(q_all.max(0).values, value)
 
