@@ -1,7 +1,7 @@
 """The committed equal-budget studies of the tuning files (``fair_tuning*.yml``,
 ``highway_obstacle_v1_tuning.yml``) agree with themselves: every algorithm had the same number of finished trials, a
-trial's value is the mean of its seeds, the winner files hold the best trial, and the lidar study's summary and trial
-times rebuild from its trials."""
+trial's value is the mean of its seeds, the winner files hold the best trial, and each summary and its trial times
+(where recorded) rebuild from the trials."""
 
 from __future__ import annotations
 
