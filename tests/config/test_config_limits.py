@@ -136,7 +136,7 @@ def test_short_repr_does_not_expand_shared_collections():
         level = [level] * 9  # 9**10 strings, if expanded
     started = time.perf_counter()
     shown = short_repr(level)
-    assert time.perf_counter() - started < 0.1
+    assert time.perf_counter() - started < 1.0  # microseconds when bounded; expanding 9**10 strings would take hours
     assert len(shown) <= MAX_SHOWN_CHARACTERS + 3
     assert short_repr("x" * 10_000).startswith("'xxx")
     assert len(short_repr("x" * 10_000)) <= MAX_SHOWN_CHARACTERS + 3
