@@ -17,8 +17,9 @@ from sb3_adc.experiment.experiments import read_experiment
 from sb3_adc.experiment.tuning_grid import summarise
 
 ROOT = Path(__file__).resolve().parents[2]
-#: The results of every tuning file (``tuning:``): the folders with winner files.
-FOLDERS = sorted(path.parent for path in (ROOT / "benchmarks" / "results").glob("*/hyperparams"))
+#: The results of every tuning file (``tuning:``): the folders with a study's trials (a folder of hyperparameter files
+#: alone can be the entries an experiment read, e.g. highway_obstacle_v1's from before its tuning).
+FOLDERS = sorted({path.parents[1] for path in (ROOT / "benchmarks" / "results").glob("*/*/trials.csv")})
 
 
 def trials_of(folder: Path) -> dict[str, list[dict[str, str]]]:
