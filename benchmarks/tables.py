@@ -60,13 +60,14 @@ TASKS = (
     Task("Lidar course, kinematic robot, noisy lidar", LIDAR, GRIDS, SHIPPED, NOISY),
     Task("Lidar course, wheeled robot", LIDAR, GRIDS, WHEELED, CLEAN),
     Task("Lidar course, wheeled robot, noisy lidar", LIDAR, GRIDS, WHEELED, NOISY),
-    # No entry is tuned on the highway (equal tuning: none); experiments/highway_obstacle_v1.yml. -v1 supersedes -v0
-    # (16 rays, which no entry learns: experiments/highway_obstacle.yml, which_algorithm.rst).
+    # The highway entries are the winners of the equal-budget tuning (experiments/highway_obstacle_v1_tuning.yml, 8
+    # trials each), trained by experiments/highway_obstacle_v1_tuned.yml. -v1 supersedes -v0 (16 rays, which no
+    # entry learns: experiments/highway_obstacle.yml, which_algorithm.rst).
     Task(
         "Highway obstacles, 64-ray lidar",
         "success on 50 held-out roads (30,000 steps)",
-        "highway_obstacle_v1/test_summary.csv",
-        SHIPPED,
+        "highway_obstacle_v1_tuned/test_summary.csv",
+        {algo: f"{config}_tuned" for algo, config in SHIPPED.items()},
         "sb3_adc/HighwayObstacle-v1",
         "held-out roads",
     ),
