@@ -42,6 +42,7 @@ class ADCUpdate(TD3):
         ]
         # The fast path's batched twin critics, online and target (see `_link_stacked_critics`).
         self._stacked_critics: tuple[StackedCritics, StackedCritics] | None = None
+        self._stacked_for: tuple[DuelingIntervalCritic, DuelingIntervalCritic] | None = None
         # The fast path's optimizer steps, actor's and critic's (see `_fast_steps`).
         self._fused_steps: tuple[FusedAdamStep, FusedAdamStep] | None = None
 
@@ -50,13 +51,15 @@ class ADCUpdate(TD3):
         The fast path's batched online and target critics, for a critic design that allows them (:func:`stackable`),
         built or re-linked to the critics' parameters when needed (a loaded or moved policy); ``None`` otherwise.
         """
-        if not stackable(self.critic):
+        # Decided once per pair of critics (`stackable` walks every module: a tenth of a step on the lidar entry's nets).
+        critics = (self.critic, self.critic_target)
+        if self._stacked_for != critics:
+            self._stacked_for = critics
             self._stacked_critics = None
-        elif self._stacked_critics is None or self._stacked_critics[0].critic is not self.critic:
-            self._stacked_critics = (StackedCritics(self.critic, True), StackedCritics(self.critic_target, False))
-        else:
-            for stacked in self._stacked_critics:
-                stacked.link()
+            if stackable(self.critic):
+                self._stacked_critics = (StackedCritics(self.critic, True), StackedCritics(self.critic_target, False))
+        for stacked in self._stacked_critics or ():
+            stacked.link()
         return self._stacked_critics
 
     def _fast_steps(self) -> tuple[FusedAdamStep, FusedAdamStep]:
@@ -232,8 +235,8 @@ class ADCUpdate(TD3):
 
     def _excluded_save_params(self) -> list[str]:
         # The last training batch is kept for the logged diagnostics only; the parameter lists are the policy's.
-        excluded = ["_last_batch", "_actor_parameters", "_target_updates", "_stacked_critics", "_fused_steps"]
-        return [*super()._excluded_save_params(), *excluded]
+        excluded = ["_last_batch", "_actor_parameters", "_target_updates"]
+        return [*super()._excluded_save_params(), *excluded, "_stacked_critics", "_stacked_for", "_fused_steps"]
 
 
 def _min_over_critics(q_values: th.Tensor) -> th.Tensor:
