@@ -52,6 +52,7 @@ from update_limit import TightLoop
 import sb3_adc
 from sb3_adc import ADC
 from sb3_adc.adc.policies import CRITIC_DESIGNS, DEFAULT_BASIS_DEGREE, DEFAULT_CRITIC_DESIGN, validate_critic_options
+from sb3_adc.experiment.provenance import cpu_model
 
 RESULTS_DIR = Path(__file__).parent / "results"
 
@@ -233,8 +234,8 @@ def write_fast(result: dict[str, Any], output: Path) -> None:
     note = (
         f"\n{result['env']}, {result['timed_steps']} timed environment steps after {result['warmup_steps']}, one gradient "
         f"step per step, {result['repeats']} repeats in a rotating order, {result['torch_threads']} torch thread(s), "
-        f"{result['clock']} clock, torch {result['versions']['torch']}; median steps/s [min-max] (ratio of medians to "
-        "SB3 TD3).\n"
+        f"{result['clock']} clock, torch {result['versions']['torch']}, {result['machine'].get('cpu', 'processor unrecorded')}"
+        "; median steps/s [min-max] (ratio of medians to SB3 TD3).\n"
     )
     header, body = fast_cells(result["rows"])
     (output / f"{stem}.md").write_text(print_table(header, body) + "\n" + note)
@@ -386,7 +387,10 @@ def _record(
         clock=args.clock,
         **settings,
         machine=dict(
-            processor=platform.processor() or platform.machine(), cpu_count=os.cpu_count(), python=platform.python_version()
+            processor=platform.processor() or platform.machine(),
+            cpu=cpu_model(),  # speeds and float rounding differ across processor models
+            cpu_count=os.cpu_count(),
+            python=platform.python_version(),
         ),
         versions=dict(sb3_adc=sb3_adc.__version__, stable_baselines3=stable_baselines3.__version__, torch=th.__version__),
         rows=rows,
