@@ -31,8 +31,6 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import os
-import platform
 import statistics
 import time
 from collections.abc import Callable, Sequence
@@ -43,16 +41,14 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-import stable_baselines3
 import torch as th
 from stable_baselines3 import DDPG, TD3
 from stable_baselines3.common.base_class import BaseAlgorithm
 from update_limit import TightLoop
 
-import sb3_adc
 from sb3_adc import ADC
 from sb3_adc.adc.policies import CRITIC_DESIGNS, DEFAULT_BASIS_DEGREE, DEFAULT_CRITIC_DESIGN, validate_critic_options
-from sb3_adc.experiment.provenance import cpu_model
+from sb3_adc.experiment.provenance import machine_metadata
 
 RESULTS_DIR = Path(__file__).parent / "results"
 
@@ -377,6 +373,9 @@ def _record(
     benchmark: str, args: argparse.Namespace, rows: list[Any], stem: str = "training_throughput_fast", **settings: Any
 ) -> Any:
     """Write the results' JSON (``{stem}.json``: the settings, the machine, the versions and the rows); return it."""
+    # The engine's provenance (processor model included: speeds and float rounding differ across processors), in
+    # this JSON's two records.
+    meta = machine_metadata()
     result = dict(
         benchmark=benchmark,
         env=args.env,
@@ -386,13 +385,8 @@ def _record(
         torch_threads=args.threads,
         clock=args.clock,
         **settings,
-        machine=dict(
-            processor=platform.processor() or platform.machine(),
-            cpu=cpu_model(),  # speeds and float rounding differ across processor models
-            cpu_count=os.cpu_count(),
-            python=platform.python_version(),
-        ),
-        versions=dict(sb3_adc=sb3_adc.__version__, stable_baselines3=stable_baselines3.__version__, torch=th.__version__),
+        machine={"processor": meta["machine"], **{key: meta[key] for key in ("cpu", "cpu_count", "python")}},
+        versions={key: meta[key] for key in ("sb3_adc", "stable_baselines3", "torch")},
         rows=rows,
     )
     args.output.mkdir(parents=True, exist_ok=True)

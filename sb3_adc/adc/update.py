@@ -235,8 +235,15 @@ class ADCUpdate(TD3):
 
     def _excluded_save_params(self) -> list[str]:
         # The last training batch is kept for the logged diagnostics only; the parameter lists are the policy's.
-        excluded = ["_last_batch", "_actor_parameters", "_target_updates"]
-        return [*super()._excluded_save_params(), *excluded, "_stacked_critics", "_stacked_for", "_fused_steps"]
+        excluded = [
+            "_last_batch",
+            "_actor_parameters",
+            "_target_updates",
+            "_stacked_critics",
+            "_stacked_for",
+            "_fused_steps",
+        ]
+        return [*super()._excluded_save_params(), *excluded]
 
 
 def _min_over_critics(q_values: th.Tensor) -> th.Tensor:
