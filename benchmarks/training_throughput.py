@@ -112,8 +112,8 @@ FAST_SETTINGS = [
 ]
 
 
-def make_fast_model(model: str, setting: FastSetting, env_id: str, seed: int) -> BaseAlgorithm:
-    """A model of ``--fast-update``: the ``-v1`` entries' update settings (see the module's docstring)."""
+def make_fast_model(model: str, setting: FastSetting, env_id: str, seed: int, **adc_options: Any) -> BaseAlgorithm:
+    """A model of ``--fast-update``: the ``-v1`` entries' update settings (module docstring); ADC's plus ``adc_options``."""
     common = dict(COMMON, learning_starts=setting.batch_size, batch_size=setting.batch_size, gamma=0.98, n_steps=3, seed=seed)
     critic_layers = [*setting.critic_arch, *setting.head_arch]
     if model == "tight loop":
@@ -127,6 +127,7 @@ def make_fast_model(model: str, setting: FastSetting, env_id: str, seed: int) ->
     heads = dict(value_net_arch=setting.head_arch, advantage_net_arch=setting.head_arch, actor_average_tau=1e-4)
     policy_kwargs = dict(net_arch=dict(pi=setting.actor_arch, qf=setting.critic_arch), n_critics=2, n_intervals=100, **heads)
     update: dict[str, Any] = dict(critic_learning_rate=1e-3, policy_delay=2, target_policy_noise=0.2, target_noise_clip=0.5)
+    update |= adc_options
     return ADC("MlpPolicy", env, fast_update=model == "ADC fast", policy_kwargs=policy_kwargs, **update, **common)
 
 

@@ -1,0 +1,91 @@
+"""
+What do ADC's mechanisms that use every interval at once cost? Training throughput against SB3's DDPG and TD3.
+
+Times ``learn()`` of ADC as shipped (the plain update path), ADC with each of its three interval mechanisms on at
+the values the screens used (greedy bootstrap targets ``target_greedy_mix=0.5``, the greedy actor
+``actor_greedy_weight=0.1``, exploration from the advantages ``interval_exploration=0.2``), SB3's TD3 and SB3's
+DDPG, with the settings and protocol of ``training_throughput.py --fast-update`` (the lidar ``-v1`` entries' update
+settings and 100 intervals; steps/s past the warm-up, repeats in a rotating order, one torch thread), on a task
+with one action dimension (Pendulum-v1) and one with six (HalfCheetah-v5, ``pip install "sb3-adc[mujoco]"``): the
+greedy search is ``n_intervals`` columns per action dimension.
+
+Usage::
+
+    python benchmarks/mechanism_throughput.py          # writes benchmarks/results/training_throughput_mechanisms.*
+    python benchmarks/mechanism_throughput.py --quick  # a smoke run, nothing written
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+import torch as th
+from stable_baselines3.common.base_class import BaseAlgorithm
+from training_throughput import FAST_SETTINGS, FastSetting, _record, make_fast_model, print_table, run, write_csv
+
+#: Each timed ADC model's options (the values of ``benchmarks/experiments/interval_mechanisms.yml``).
+MECHANISMS: dict[str, dict[str, Any]] = {
+    "ADC": {},
+    "ADC greedy targets": {"target_greedy_mix": 0.5},
+    "ADC greedy actor": {"actor_greedy_weight": 0.1},
+    "ADC interval exploration": {"interval_exploration": 0.2, "interval_temperature": 10.0},
+}
+MODELS = ["DDPG", "TD3", *MECHANISMS]
+ENVS = ["Pendulum-v1", "HalfCheetah-v5"]
+
+
+def make(model: str, setting: FastSetting, env_id: str, seed: int) -> BaseAlgorithm:
+    """A model of :data:`MODELS`: SB3's DDPG or TD3, or ADC (plain update path) with a mechanism's options."""
+    if model in MECHANISMS:
+        return make_fast_model("ADC plain", setting, env_id, seed, **MECHANISMS[model])
+    return make_fast_model(model, setting, env_id, seed)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[1], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--steps", type=int, default=1500, help="timed environment steps per run")
+    parser.add_argument("--warmup", type=int, default=300, help="untimed steps first")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--clock", choices=["wall", "cpu"], default="cpu")
+    parser.add_argument("--quick", action="store_true", help="one short repeat of the first setting, nothing written")
+    parser.add_argument("--output", type=Path, default=Path(__file__).parent / "results")
+    args = parser.parse_args()
+    th.set_num_threads(args.threads)
+    settings = FAST_SETTINGS[:2]
+    if args.quick:
+        settings, args.steps, args.warmup, args.repeats = settings[:1], 200, 100, 1
+    rows: list[dict[str, Any]] = []
+    for env_id in ENVS:
+        args.env = env_id
+        rows += [dict(row, env=env_id) for row in run(args, MODELS, settings, make, "DDPG")]
+    header = ["env", "setting", *(f"{model} steps/s (/ DDPG)" for model in MODELS)]
+    body = []
+    for row in rows:
+        cells = []
+        for k in (model.replace(" ", "_") for model in MODELS):
+            runs = row[f"{k}_runs"]
+            cells.append(f"{row[f'{k}_steps_per_s']:.0f} [{min(runs):.0f}-{max(runs):.0f}] ({row[f'{k}_over_ddpg']:.2f})")
+        body.append([row["env"], row["setting"], *cells])
+    table = print_table(header, body)
+    if args.quick:
+        return
+    stem = "training_throughput_mechanisms"
+    args.env = ", ".join(ENVS)
+    _record("mechanism_throughput", args, rows, stem, mechanisms=MECHANISMS)
+    note = (
+        f"\n{args.steps} timed environment steps after {args.warmup}, one gradient step per step, {args.repeats} repeats "
+        f"in a rotating order, {args.threads} torch thread(s), {args.clock} clock, torch {th.__version__}; median "
+        "steps/s [min-max] (ratio of medians to SB3 DDPG). ADC: the plain update path, 100 intervals.\n"
+    )
+    (args.output / f"{stem}.md").write_text(table + "\n" + note)
+    write_csv(header, body, args.output / f"{stem}.csv")
+    print(f"wrote {args.output}/{stem}.{{json,md,csv}}")
+
+
+if __name__ == "__main__":
+    main()
