@@ -99,19 +99,23 @@ def summary(
 
 def display_table(table: pd.DataFrame, reference: str | None) -> pd.DataFrame:
     """
-    The summary with rounded numbers and CIs in brackets, one string per cell.
+    The summary with rounded numbers and CIs in brackets, one string per cell: one decimal where an environment's
+    IQMs reach 10 in size, three where they stay below.
 
     :param table: The output of :func:`summary`
     :param reference: The reference configuration
     """
+    # Returns of order one (the lidar and highway tasks) need more decimals than the Pendulum's hundreds.
+    scale = table.groupby("env")[["final_iqm", "auc_iqm"]].transform(lambda column: column.abs().max()).max(axis=1)
     rows = []
-    for row in table.itertuples():
+    for row, row_scale in zip(table.itertuples(), scale, strict=True):
         improvement = "—"
         if not pd.isna(getattr(row, "p_improvement_of_adc", np.nan)):
             improvement = f"{row.p_improvement_of_adc:.2f} [{row.p_improvement_ci_low:.2f}, {row.p_improvement_ci_high:.2f}]"
-        final_iqm = f"{row.final_iqm:.1f} [{row.final_iqm_ci_low:.1f}, {row.final_iqm_ci_high:.1f}]"
-        auc_iqm = f"{row.auc_iqm:.1f} [{row.auc_iqm_ci_low:.1f}, {row.auc_iqm_ci_high:.1f}]"
-        spread = [f"{row.final_mean:.1f}", f"{row.final_std:.1f}"]
+        d = 1 if row_scale >= 10 else 3
+        final_iqm = f"{row.final_iqm:.{d}f} [{row.final_iqm_ci_low:.{d}f}, {row.final_iqm_ci_high:.{d}f}]"
+        auc_iqm = f"{row.auc_iqm:.{d}f} [{row.auc_iqm_ci_low:.{d}f}, {row.auc_iqm_ci_high:.{d}f}]"
+        spread = [f"{row.final_mean:.{d}f}", f"{row.final_std:.{d}f}"]
         rows.append([row.env, row.config, str(row.n_runs), final_iqm, *spread, auc_iqm, improvement])
     return pd.DataFrame(rows, columns=[*_DISPLAY_COLUMNS, f"P({reference} > configuration) [95% CI]"])
 

@@ -16,7 +16,7 @@ import pytest
 from sb3_adc.cli import main
 from sb3_adc.experiment import test_sets as scoring
 from sb3_adc.experiment.experiments import ExperimentError, read_experiment, repository_root, run_experiment
-from sb3_adc.experiment.summary import diagnostics_summary, summary
+from sb3_adc.experiment.summary import diagnostics_summary, display_table, summary
 from sb3_adc.experiment.tuning_grid import record as tuning_record
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -93,6 +93,20 @@ def test_summary_regenerates_with_its_confidence_intervals():
     experiment = read_experiment(str(ROOT / "benchmarks" / "experiments" / "noisy_pendulum_shipped.yml"))
     expected = pd.read_csv(Path(experiment.results) / "summary.csv")
     assert_same_columns(regenerated_summary(experiment, experiment.bootstrap_reps), expected, expected.columns)
+
+
+def test_summary_table_rounds_to_the_scale_of_each_environments_returns():
+    """Returns of order one keep three decimals (one would read 0.026 and -0.165 as 0.0 and -0.2); the Pendulum's one."""
+    results = ROOT / "benchmarks" / "results"
+    names = ("noisy_pendulum_shipped", "speed_mechanisms_screen")
+    pendulum, lidar = (pd.read_csv(results / name / "summary.csv") for name in names)
+    table = display_table(pd.concat([pendulum, lidar], ignore_index=True), "adc")
+    first = pendulum.iloc[0]
+    assert table.iloc[0]["final IQM [95% CI]"].startswith(f"{first.final_iqm:.1f} [{first.final_iqm_ci_low:.1f}, ")
+    row = lidar.iloc[2]
+    cell = table.iloc[len(pendulum) + 2]["final IQM [95% CI]"]
+    assert cell == f"{row.final_iqm:.3f} [{row.final_iqm_ci_low:.3f}, {row.final_iqm_ci_high:.3f}]"
+    assert abs(float(cell.split()[0]) - row.final_iqm) < 5e-4
 
 
 @pytest.mark.parametrize("path", FILES, ids=IDS)
