@@ -21,17 +21,17 @@ from pathlib import Path
 from typing import Any
 
 import torch as th
+import training_throughput as tt
 from stable_baselines3.common.base_class import BaseAlgorithm
-from training_throughput import FAST_SETTINGS, FastSetting, _record, make_fast_model, print_table, run, write_csv
 
 MODELS = ["ADC fast", "ADC fast compiled", "TD3"]
 #: Seconds of each model's warm-up ``learn`` (the compilation included), by (setting, model).
 WARMUP_S: dict[tuple[str, str], list[float]] = {}
 
 
-def make(model: str, setting: FastSetting, env_id: str, seed: int) -> BaseAlgorithm:
+def make(model: str, setting: tt.FastSetting, env_id: str, seed: int) -> BaseAlgorithm:
     """A model of :data:`MODELS`; the compiled one has its update's graphs wrapped in ``torch.compile``."""
-    built = make_fast_model("ADC fast" if model.startswith("ADC") else model, setting, env_id, seed)
+    built = tt.make_fast_model("ADC fast" if model.startswith("ADC") else model, setting, env_id, seed)
     if model == "ADC fast compiled":
         for name in ("target_q_values", "_q_values", "actor_loss"):
             setattr(built, name, th.compile(getattr(built, name), dynamic=False))
@@ -62,35 +62,32 @@ def main() -> None:
     parser.add_argument("--output", type=Path, default=Path(__file__).parent / "results")
     args = parser.parse_args()
     th.set_num_threads(args.threads)
-    settings = [FAST_SETTINGS[0], FAST_SETTINGS[2]]
+    settings = [tt.FAST_SETTINGS[0], tt.FAST_SETTINGS[2]]
     if args.quick:
         settings, args.steps, args.warmup, args.repeats = settings[:1], 200, 100, 1
-    rows = run(args, MODELS, settings, make, "TD3")
+    rows = tt.run(args, MODELS, settings, make, "TD3")
     for row in rows:
         row["warmup_s"] = {model: WARMUP_S[(row["setting"], model)] for model in MODELS}
     header = ["setting", *(f"{model} steps/s (/ TD3)" for model in MODELS), "compiled / fast", "warm-up s (fast, compiled)"]
     body = []
     for row in rows:
-        keys = [model.replace(" ", "_") for model in MODELS]
-        cells = [f"{row[f'{k}_steps_per_s']:.0f} [{min(row[f'{k}_runs']):.0f}-{max(row[f'{k}_runs']):.0f}]" for k in keys]
-        cells = [f"{cell} ({row[f'{k}_over_td3']:.2f})" for cell, k in zip(cells, keys, strict=True)]
+        cells = [tt.speed_cell(row, model, "TD3") for model in MODELS]
         ratio = row["ADC_fast_compiled_steps_per_s"] / row["ADC_fast_steps_per_s"]
         warmups = row["warmup_s"]
         warmup = f"{max(warmups['ADC fast']):.0f}, {max(warmups['ADC fast compiled']):.0f}"
         body.append([row["setting"], *cells, f"{ratio:.2f}", warmup])
-    table = print_table(header, body)
+    table = tt.print_table(header, body)
     if args.quick:
         return
     stem = "training_throughput_compile"
-    _record("compile_throughput", args, rows, stem, compiled=["target_q_values", "_q_values", "actor_loss"])
+    tt.record("compile_throughput", args, rows, stem, compiled=["target_q_values", "_q_values", "actor_loss"])
     note = (
         f"\n{args.env}, {args.steps} timed environment steps after {args.warmup} (the warm-up holds the compilation), "
         f"one gradient step per step, {args.repeats} repeats in a rotating order, {args.threads} torch thread(s), "
         f"{args.clock} clock, torch {th.__version__}; median steps/s [min-max] (ratio of medians to SB3 TD3); "
         "warm-up: the longest of the repeats, wall-clock seconds.\n"
     )
-    (args.output / f"{stem}.md").write_text(table + "\n" + note)
-    write_csv(header, body, args.output / f"{stem}.csv")
+    tt.write_tables(args.output, stem, table, header, body, note)
     print(f"wrote {args.output}/{stem}.{{json,md,csv}}")
 
 

@@ -22,8 +22,8 @@ from pathlib import Path
 from typing import Any
 
 import torch as th
+import training_throughput as tt
 from stable_baselines3.common.base_class import BaseAlgorithm
-from training_throughput import FAST_SETTINGS, FastSetting, _record, make_fast_model, print_table, run, write_csv
 
 #: Each timed ADC model's options (the values of ``benchmarks/experiments/interval_mechanisms.yml``).
 MECHANISMS: dict[str, dict[str, Any]] = {
@@ -36,11 +36,11 @@ MODELS = ["DDPG", "TD3", *MECHANISMS]
 ENVS = ["Pendulum-v1", "HalfCheetah-v5"]
 
 
-def make(model: str, setting: FastSetting, env_id: str, seed: int) -> BaseAlgorithm:
+def make(model: str, setting: tt.FastSetting, env_id: str, seed: int) -> BaseAlgorithm:
     """A model of :data:`MODELS`: SB3's DDPG or TD3, or ADC (plain update path) with a mechanism's options."""
     if model in MECHANISMS:
-        return make_fast_model("ADC plain", setting, env_id, seed, **MECHANISMS[model])
-    return make_fast_model(model, setting, env_id, seed)
+        return tt.make_fast_model("ADC plain", setting, env_id, seed, **MECHANISMS[model])
+    return tt.make_fast_model(model, setting, env_id, seed)
 
 
 def main() -> None:
@@ -56,34 +56,27 @@ def main() -> None:
     parser.add_argument("--output", type=Path, default=Path(__file__).parent / "results")
     args = parser.parse_args()
     th.set_num_threads(args.threads)
-    settings = FAST_SETTINGS[:2]
+    settings = tt.FAST_SETTINGS[:2]
     if args.quick:
         settings, args.steps, args.warmup, args.repeats = settings[:1], 200, 100, 1
     rows: list[dict[str, Any]] = []
     for env_id in ENVS:
         args.env = env_id
-        rows += [dict(row, env=env_id) for row in run(args, MODELS, settings, make, "DDPG")]
+        rows += [dict(row, env=env_id) for row in tt.run(args, MODELS, settings, make, "DDPG")]
     header = ["env", "setting", *(f"{model} steps/s (/ DDPG)" for model in MODELS)]
-    body = []
-    for row in rows:
-        cells = []
-        for k in (model.replace(" ", "_") for model in MODELS):
-            runs = row[f"{k}_runs"]
-            cells.append(f"{row[f'{k}_steps_per_s']:.0f} [{min(runs):.0f}-{max(runs):.0f}] ({row[f'{k}_over_ddpg']:.2f})")
-        body.append([row["env"], row["setting"], *cells])
-    table = print_table(header, body)
+    body = [[row["env"], row["setting"], *(tt.speed_cell(row, model, "DDPG") for model in MODELS)] for row in rows]
+    table = tt.print_table(header, body)
     if args.quick:
         return
     stem = "training_throughput_mechanisms"
     args.env = ", ".join(ENVS)
-    _record("mechanism_throughput", args, rows, stem, mechanisms=MECHANISMS)
+    tt.record("mechanism_throughput", args, rows, stem, mechanisms=MECHANISMS)
     note = (
         f"\n{args.steps} timed environment steps after {args.warmup}, one gradient step per step, {args.repeats} repeats "
         f"in a rotating order, {args.threads} torch thread(s), {args.clock} clock, torch {th.__version__}; median "
         "steps/s [min-max] (ratio of medians to SB3 DDPG). ADC: the plain update path, 100 intervals.\n"
     )
-    (args.output / f"{stem}.md").write_text(table + "\n" + note)
-    write_csv(header, body, args.output / f"{stem}.csv")
+    tt.write_tables(args.output, stem, table, header, body, note)
     print(f"wrote {args.output}/{stem}.{{json,md,csv}}")
 
 

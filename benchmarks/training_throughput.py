@@ -176,6 +176,12 @@ def run(
     return rows
 
 
+def speed_cell(row: dict[str, Any], model: str, baseline: str) -> str:
+    """``model``'s median steps/s in a :func:`run` row, [min-max over the repeats] (ratio of medians to ``baseline``)."""
+    key, runs = model.replace(" ", "_"), row[f"{model.replace(' ', '_')}_runs"]
+    return f"{row[f'{key}_steps_per_s']:.0f} [{min(runs):.0f}-{max(runs):.0f}] ({row[f'{key}_over_{baseline.lower()}']:.2f})"
+
+
 def fast_cells(rows: list[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
     """The ``--fast-update`` table's header and rows: median steps/s [min-max over the repeats] (ratio to TD3's)."""
     labels = {"ADC fast": "ADC fast_update", "ADC plain": "ADC plain", "TD3": "SB3 TD3", "DDPG": "SB3 DDPG"}
@@ -183,11 +189,7 @@ def fast_cells(rows: list[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
     header.append("ADC fast / tight loop")
     body = []
     for r in rows:
-        cells = [r["setting"]]
-        for model in FAST_MODELS:
-            key = model.replace(" ", "_")
-            runs = r[f"{key}_runs"]
-            cells.append(f"{r[f'{key}_steps_per_s']:.0f} [{min(runs):.0f}-{max(runs):.0f}] ({r[f'{key}_over_td3']:.2f})")
+        cells = [r["setting"], *(speed_cell(r, model, "TD3") for model in FAST_MODELS)]
         cells += [f"{r['ADC_fast_steps_per_s'] / r[f'{m}_steps_per_s']:.2f}" for m in ("ADC_plain", "tight_loop")]
         body.append(cells)
     return header, body
@@ -217,12 +219,11 @@ def print_table(header: list[str], body: list[list[str]]) -> str:
     return table
 
 
-def write_csv(header: list[str], body: list[list[str]], path: Path) -> None:
-    """Write the table as CSV."""
-    with path.open("w", newline="") as file:
-        writer = csv.writer(file)
-        writer.writerow(header)
-        writer.writerows(body)
+def write_tables(output: Path, stem: str, table: str, header: list[str], body: list[list[str]], note: str = "") -> None:
+    """Write ``{stem}.md`` (the Markdown ``table``, then ``note``) and ``{stem}.csv`` (``header`` and ``body``)."""
+    (output / f"{stem}.md").write_text(table + "\n" + note)
+    with (output / f"{stem}.csv").open("w", newline="") as file:
+        csv.writer(file).writerows([header, *body])
 
 
 def write_fast(result: dict[str, Any], output: Path) -> None:
@@ -235,8 +236,7 @@ def write_fast(result: dict[str, Any], output: Path) -> None:
         "; median steps/s [min-max] (ratio of medians to SB3 TD3).\n"
     )
     header, body = fast_cells(result["rows"])
-    (output / f"{stem}.md").write_text(print_table(header, body) + "\n" + note)
-    write_csv(header, body, output / f"{stem}.csv")
+    write_tables(output, stem, print_table(header, body), header, body, note)
 
 
 def plot(rows: list[dict[str, Any]], models: list[str], path: Path) -> None:
@@ -351,7 +351,7 @@ def main() -> None:
         if args.quick:
             print_table(*fast_cells(rows))
             return
-        write_fast(_record("training_throughput --fast-update", args, rows, models=FAST_MODELS), args.output)
+        write_fast(record("training_throughput --fast-update", args, rows, models=FAST_MODELS), args.output)
         print(f"wrote {args.output}/training_throughput_fast.{{json,md,csv}}")
         return
     print(f"Training throughput on {args.env}: {timing}")
@@ -363,14 +363,13 @@ def main() -> None:
     if args.quick:
         return
     extra = dict(action_network_intervals=ACTION_NETWORK_INTERVALS, designs=args.designs)
-    _record("training_throughput", args, rows, stem, **extra, default_critic_design=DEFAULT_CRITIC_DESIGN)
-    (args.output / f"{stem}.md").write_text(table + "\n")
-    write_csv(header, body, args.output / f"{stem}.csv")
+    record("training_throughput", args, rows, stem, **extra, default_critic_design=DEFAULT_CRITIC_DESIGN)
+    write_tables(args.output, stem, table, header, body)
     plot(rows, models, args.output / f"{stem}.png")
     print(f"wrote {args.output}/{stem}.{{json,md,csv,png}}")
 
 
-def _record(
+def record(
     benchmark: str, args: argparse.Namespace, rows: list[Any], stem: str = "training_throughput_fast", **settings: Any
 ) -> Any:
     """Write the results' JSON (``{stem}.json``: the settings, the machine, the versions and the rows); return it."""
