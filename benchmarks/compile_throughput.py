@@ -15,9 +15,7 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import time
-from pathlib import Path
 from typing import Any
 
 import torch as th
@@ -49,17 +47,8 @@ def make(model: str, setting: tt.FastSetting, env_id: str, seed: int) -> BaseAlg
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(
-        description=__doc__.split("\n\n")[1], formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("--env", default="Pendulum-v1")
-    parser.add_argument("--steps", type=int, default=2000, help="timed environment steps per run")
-    parser.add_argument("--warmup", type=int, default=500, help="untimed steps first (they hold the compilation)")
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--threads", type=int, default=1)
-    parser.add_argument("--clock", choices=["wall", "cpu"], default="cpu")
-    parser.add_argument("--quick", action="store_true", help="one short repeat of the first setting, nothing written")
-    parser.add_argument("--output", type=Path, default=Path(__file__).parent / "results")
+    parser = tt.timing_parser(__doc__.split("\n\n")[1], steps=2000, warmup=500, clock="cpu")
+    parser.add_argument("--env", default="Pendulum-v1", help="environment id (default: Pendulum-v1)")
     args = parser.parse_args()
     th.set_num_threads(args.threads)
     settings = [tt.FAST_SETTINGS[0], tt.FAST_SETTINGS[2]]

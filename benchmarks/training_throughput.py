@@ -120,10 +120,8 @@ def make_fast_model(model: str, setting: FastSetting, env_id: str, seed: int, **
         return TightLoop(env_id, setting.actor_arch, critic_layers, setting.batch_size, seed)
     env = gym.make(env_id)
     baseline_arch = dict(pi=setting.actor_arch, qf=critic_layers)
-    if model == "TD3":
-        return TD3("MlpPolicy", env, policy_kwargs=dict(net_arch=baseline_arch), **common)
-    if model == "DDPG":
-        return DDPG("MlpPolicy", env, policy_kwargs=dict(net_arch=baseline_arch), **common)
+    if model in ("TD3", "DDPG"):
+        return {"TD3": TD3, "DDPG": DDPG}[model]("MlpPolicy", env, policy_kwargs=dict(net_arch=baseline_arch), **common)
     heads = dict(value_net_arch=setting.head_arch, advantage_net_arch=setting.head_arch, actor_average_tau=1e-4)
     policy_kwargs = dict(net_arch=dict(pi=setting.actor_arch, qf=setting.critic_arch), n_critics=2, n_intervals=100, **heads)
     update: dict[str, Any] = dict(critic_learning_rate=1e-3, policy_delay=2, target_policy_noise=0.2, target_noise_clip=0.5)
@@ -283,20 +281,23 @@ def plot(rows: list[dict[str, Any]], models: list[str], path: Path) -> None:
     plt.close(fig)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--env", default="Pendulum-v1", help="environment id (default: Pendulum-v1)")
-    parser.add_argument("--steps", type=int, default=1500, help="timed steps per run (default: 1500)")
-    parser.add_argument("--warmup", type=int, default=300, help="untimed steps before timing (default: 300)")
+def timing_parser(description: str, steps: int, warmup: int, clock: str) -> argparse.ArgumentParser:
+    """A parser with the options every throughput script shares (steps, warm-up, repeats, threads, clock, output)."""
+    parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--steps", type=int, default=steps, help=f"timed steps per run (default: {steps})")
+    parser.add_argument("--warmup", type=int, default=warmup, help=f"untimed steps before timing (default: {warmup})")
     parser.add_argument("--repeats", type=int, default=3, help="runs per model and setting (default: 3)")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default: 1)")
-    parser.add_argument(
-        "--clock",
-        choices=sorted(CLOCKS),
-        default="wall",
-        help="wall: elapsed time (default; use an otherwise idle machine); cpu: this process' CPU time, robust to "
-        "other load on a shared machine",
-    )
+    clocks = "wall: elapsed time (use an idle machine); cpu: this process' CPU time, robust to other load"
+    parser.add_argument("--clock", choices=sorted(CLOCKS), default=clock, help=f"{clocks} (default: {clock})")
+    parser.add_argument("--quick", action="store_true", help="a short smoke run; writes nothing")
+    parser.add_argument("--output", type=Path, default=RESULTS_DIR, help="results folder (default: benchmarks/results)")
+    return parser
+
+
+def main() -> None:
+    parser = timing_parser(__doc__ or "", steps=1500, warmup=300, clock="wall")
+    parser.add_argument("--env", default="Pendulum-v1", help="environment id (default: Pendulum-v1)")
     parser.add_argument(
         "--designs", nargs="+", choices=CRITIC_DESIGNS, default=list(CRITIC_DESIGNS), help="ADC critic designs (default: all)"
     )
@@ -314,13 +315,11 @@ def main() -> None:
         help="time ADC's fast update path against its plain path, SB3 TD3 and SB3 DDPG with the -v1 update "
         "settings; writes training_throughput_fast.*",
     )
-    parser.add_argument("--quick", action="store_true", help="a short smoke run; writes nothing")
     parser.add_argument(
         "--replot",
         action="store_true",
         help="redraw the figure from the results' JSON, without timing (with --fast-update: rewrite its .md and .csv)",
     )
-    parser.add_argument("--output", type=Path, default=RESULTS_DIR, help="results folder (default: benchmarks/results)")
     args = parser.parse_args()
 
     if args.fast_update and args.replot:
