@@ -60,6 +60,14 @@ TASKS = (
     Task("Lidar course, kinematic robot, noisy lidar", LIDAR, GRIDS, SHIPPED, NOISY),
     Task("Lidar course, wheeled robot", LIDAR, GRIDS, WHEELED, CLEAN),
     Task("Lidar course, wheeled robot, noisy lidar", LIDAR, GRIDS, WHEELED, NOISY),
+    # Every entry of the steering-and-speed task is its -v1 entry, untuned there (experiments/speed_mechanisms.yml).
+    Task(
+        "Lidar course, steering and speed",
+        "success on 100 held-out layouts (50,000 steps)",
+        "speed_mechanisms/test_summary.csv",
+        {"ADC": "adc_shipped", "DDPG": "ddpg", "TD3": "td3", "SAC": "sac"},
+        "sb3_adc/LidarObstacleCourseSpeed-v1",
+    ),
     # The highway entries are the winners of the equal-budget tuning (experiments/highway_obstacle_v1_tuning.yml, 8
     # trials each), trained by experiments/highway_obstacle_v1_tuned.yml. -v1 supersedes -v0 (16 rays, which no
     # entry learns: experiments/highway_obstacle.yml, which_algorithm.rst).
