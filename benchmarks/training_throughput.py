@@ -176,7 +176,8 @@ def run(
 
 def speed_cell(row: dict[str, Any], model: str, baseline: str) -> str:
     """``model``'s median steps/s in a :func:`run` row, [min-max over the repeats] (ratio of medians to ``baseline``)."""
-    key, runs = model.replace(" ", "_"), row[f"{model.replace(' ', '_')}_runs"]
+    key = model.replace(" ", "_")
+    runs = row[f"{key}_runs"]
     return f"{row[f'{key}_steps_per_s']:.0f} [{min(runs):.0f}-{max(runs):.0f}] ({row[f'{key}_over_{baseline.lower()}']:.2f})"
 
 
