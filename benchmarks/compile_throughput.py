@@ -69,13 +69,9 @@ def main() -> None:
     if args.quick:
         return
     stem = "training_throughput_compile"
-    tt.record("compile_throughput", args, rows, stem, compiled=["target_q_values", "_q_values", "actor_loss"])
-    note = (
-        f"\n{args.env}, {args.steps} timed environment steps after {args.warmup} (the warm-up holds the compilation), "
-        f"one gradient step per step, {args.repeats} repeats in a rotating order, {args.threads} torch thread(s), "
-        f"{args.clock} clock, torch {th.__version__}; median steps/s [min-max] (ratio of medians to SB3 TD3); "
-        "warm-up: the longest of the repeats, wall-clock seconds.\n"
-    )
+    result = tt.record("compile_throughput", args, rows, stem, compiled=["target_q_values", "_q_values", "actor_loss"])
+    compilation, tail = " (the warm-up holds the compilation)", "; warm-up: the longest of the repeats, wall-clock seconds."
+    note = tt.timing_note(result, "TD3", compilation, tail)
     tt.write_tables(args.output, stem, table, header, body, note)
     print(f"wrote {args.output}/{stem}.{{json,md,csv}}")
 

@@ -59,12 +59,8 @@ def main() -> None:
         return
     stem = "training_throughput_mechanisms"
     args.env = ", ".join(ENVS)
-    tt.record("mechanism_throughput", args, rows, stem, mechanisms=MECHANISMS)
-    note = (
-        f"\n{args.steps} timed environment steps after {args.warmup}, one gradient step per step, {args.repeats} repeats "
-        f"in a rotating order, {args.threads} torch thread(s), {args.clock} clock, torch {th.__version__}; median "
-        "steps/s [min-max] (ratio of medians to SB3 DDPG). ADC: the plain update path, 100 intervals.\n"
-    )
+    result = tt.record("mechanism_throughput", args, rows, stem, mechanisms=MECHANISMS)
+    note = tt.timing_note(result, "DDPG", tail=". ADC: the plain update path, 100 intervals.")
     tt.write_tables(args.output, stem, table, header, body, note)
     print(f"wrote {args.output}/{stem}.{{json,md,csv}}")
 

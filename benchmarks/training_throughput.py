@@ -225,17 +225,20 @@ def write_tables(output: Path, stem: str, table: str, header: list[str], body: l
         csv.writer(file).writerows([header, *body])
 
 
+def timing_note(result: dict[str, Any], baseline: str, warmup: str = "", tail: str = ".") -> str:
+    """The protocol line under a throughput table, from :func:`record`'s ``result``, ``warmup`` and ``tail`` inserted."""
+    return (
+        f"\n{result['env']}, {result['timed_steps']} timed environment steps after {result['warmup_steps']}{warmup}, one "
+        f"gradient step per step, {result['repeats']} repeats in a rotating order, {result['torch_threads']} torch thread(s), "
+        f"{result['clock']} clock, torch {result['versions']['torch']}, {result['machine'].get('cpu', 'processor unrecorded')}"
+        f"; median steps/s [min-max] (ratio of medians to SB3 {baseline}){tail}\n"
+    )
+
+
 def write_fast(result: dict[str, Any], output: Path) -> None:
     """Write ``training_throughput_fast.{md,csv}`` from the results' JSON (``result``)."""
-    stem = "training_throughput_fast"
-    note = (
-        f"\n{result['env']}, {result['timed_steps']} timed environment steps after {result['warmup_steps']}, one gradient "
-        f"step per step, {result['repeats']} repeats in a rotating order, {result['torch_threads']} torch thread(s), "
-        f"{result['clock']} clock, torch {result['versions']['torch']}, {result['machine'].get('cpu', 'processor unrecorded')}"
-        "; median steps/s [min-max] (ratio of medians to SB3 TD3).\n"
-    )
     header, body = fast_cells(result["rows"])
-    write_tables(output, stem, print_table(header, body), header, body, note)
+    write_tables(output, "training_throughput_fast", print_table(header, body), header, body, timing_note(result, "TD3"))
 
 
 def plot(rows: list[dict[str, Any]], models: list[str], path: Path) -> None:
@@ -267,8 +270,7 @@ def plot(rows: list[dict[str, Any]], models: list[str], path: Path) -> None:
             ax.text(top * 1.08, i, f"default / DDPG = {ratio:.2f}", va="center", fontsize="small")
     ax.set_yticks(y, [r["setting"] for r in rows])
     ax.set_ylim(-0.6, len(rows) - 0.4)
-    # The settings differ ten-fold in speed: a log axis shows each one's spread.
-    ax.set_xscale("log")
+    ax.set_xscale("log")  # the settings differ ten-fold in speed: a log axis shows each one's spread
     lowest = min(min(r[f"{model}_runs"]) for r in rows for model in models)
     highest = max(max(r[f"{model}_runs"]) for r in rows for model in models)
     ax.set_xlim(lowest * 0.8, highest * 4.0)
